@@ -1,0 +1,34 @@
+//! Generated dynamics against the numeric RNEA oracle, per call.
+//! `cargo bench --bench dynamics`.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use sdnn::models::kinova_gen3_lite_3dof as kinova;
+use sdnn::oracle::{self, Model};
+
+fn oracle_model(name: &str) -> Model {
+    let path = format!("{}/models/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+    Model::from_description(&codegen::Description::load(path).expect("description"))
+}
+
+fn kinova_3dof(c: &mut Criterion) {
+    let (q, qd, qdd) = ([0.3, -0.7, 1.1], [0.5, -0.2, 0.9], [1.5, -2.0, 0.4]);
+    let model = oracle_model("kinova_gen3_lite_3dof");
+    let mut group = c.benchmark_group("kinova_gen3_lite_3dof");
+    group.bench_function("generated tau", |b| {
+        b.iter(|| kinova::tau(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    group.bench_function("generated mass_matrix", |b| b.iter(|| kinova::mass_matrix(black_box(&q))));
+    group.bench_function("generated regressor", |b| {
+        b.iter(|| kinova::regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    group.bench_function("oracle rnea", |b| {
+        b.iter(|| oracle::rnea(black_box(&model), black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    group.bench_function("oracle crba", |b| b.iter(|| oracle::crba(black_box(&model), black_box(&q))));
+    group.finish();
+}
+
+criterion_group!(benches, kinova_3dof);
+criterion_main!(benches);

@@ -1,0 +1,46 @@
+//! Regenerates stale `models/*.toml` into `models/generated/*.rs` (Symbolica
+//! runs only then) and writes the registry of compiled models to OUT_DIR.
+
+use std::path::PathBuf;
+
+use codegen::{Config, Outcome};
+
+fn main() {
+    // A directory: cargo re-runs this script when any file below it changes,
+    // including added or removed descriptions.
+    println!("cargo:rerun-if-changed=models");
+    let results = match Config::new("models").run() {
+        Ok(results) => results,
+        Err(e) => fail(&e),
+    };
+    let mut names = Vec::new();
+    let mut errors = Vec::new();
+    for result in results {
+        match result {
+            Ok(report) => {
+                if let Outcome::Regenerated { seconds, operations } = &report.outcome {
+                    let ops: Vec<String> = operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
+                    println!(
+                        "cargo:warning=regenerated {} in {seconds:.1} s (operations: {}); commit it with its TOML",
+                        report.generated.display(),
+                        ops.join(", ")
+                    );
+                }
+                names.push(report.name);
+            }
+            Err(e) => errors.push(e),
+        }
+    }
+    if !errors.is_empty() {
+        fail(&errors.join("\n"));
+    }
+    let out = PathBuf::from(std::env::var_os("OUT_DIR").unwrap_or_default()).join("models.rs");
+    if let Err(e) = std::fs::write(&out, codegen::registry(&names)) {
+        fail(&format!("{}: {e}", out.display()));
+    }
+}
+
+fn fail(message: &str) -> ! {
+    eprintln!("error: {message}");
+    std::process::exit(1);
+}

@@ -1,0 +1,351 @@
+//! Rust emission: a function's expression DAG becomes flat straight-line
+//! Rust (one `let` per shared intermediate), built with quote and checked by
+//! parsing it with syn.
+
+use std::collections::HashMap;
+
+use proc_macro2::{Ident, Span, TokenStream};
+use quote::{format_ident, quote};
+
+use crate::program::{Dag, Node, NodeId};
+
+/// What a generated function takes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Argument {
+    Q,
+    Qd,
+    Qdd,
+}
+
+impl Argument {
+    fn ident(self) -> Ident {
+        match self {
+            Argument::Q => format_ident!("q"),
+            Argument::Qd => format_ident!("qd"),
+            Argument::Qdd => format_ident!("qdd"),
+        }
+    }
+}
+
+/// The program inputs, derived from the arguments: per joint i (1-based in
+/// names) sin and cos of q_i, qd_i, qdd_i and sign(qd_i).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Input {
+    Sin(usize),
+    Cos(usize),
+    Qd(usize),
+    Qdd(usize),
+    Sign(usize),
+}
+
+impl Input {
+    pub fn ident(self) -> Ident {
+        match self {
+            Input::Sin(i) => format_ident!("s{}", i + 1),
+            Input::Cos(i) => format_ident!("c{}", i + 1),
+            Input::Qd(i) => format_ident!("qd{}", i + 1),
+            Input::Qdd(i) => format_ident!("qdd{}", i + 1),
+            Input::Sign(i) => format_ident!("sign_qd{}", i + 1),
+        }
+    }
+}
+
+/// Shape of a function's result.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    Vector(usize),
+    Matrix(usize, usize),
+}
+
+/// One generated function: its DAG, inputs and row-major result roots.
+pub struct Function<'a> {
+    pub name: &'a str,
+    pub doc: &'a str,
+    pub arguments: &'a [Argument],
+    pub dof: usize,
+    pub inputs: &'a [Input],
+    pub dag: &'a Dag,
+    pub roots: &'a [NodeId],
+    pub shape: Shape,
+}
+
+impl Function<'_> {
+    /// The function as Rust tokens.
+    pub fn tokens(&self) -> TokenStream {
+        let name = format_ident!("{}", self.name);
+        let doc = self.doc;
+        let n = int(self.dof);
+        let used = self.used_inputs();
+        let params = self.arguments.iter().map(|&a| {
+            let used_here = used.iter().any(|input| argument_of(*input) == a);
+            let ident = if used_here {
+                a.ident()
+            } else {
+                format_ident!("_{}", a.ident())
+            };
+            quote! { #ident: &[f64; #n] }
+        });
+        let ret = match self.shape {
+            Shape::Vector(len) => {
+                let len = int(len);
+                quote! { [f64; #len] }
+            }
+            Shape::Matrix(rows, cols) => {
+                let (rows, cols) = (int(rows), int(cols));
+                quote! { [[f64; #cols]; #rows] }
+            }
+        };
+        let prologue = self.prologue(&used);
+        let (lets, names) = self.intermediates();
+        let values: Vec<TokenStream> = self.roots.iter().map(|&r| self.expr(r, &names)).collect();
+        let result = match self.shape {
+            Shape::Vector(_) => quote! { [#(#values),*] },
+            Shape::Matrix(_, cols) => {
+                let rows = values.chunks(cols).map(|row| quote! { [#(#row),*] });
+                quote! { [#(#rows),*] }
+            }
+        };
+        quote! {
+            #[doc = #doc]
+            #[inline]
+            #[must_use]
+            pub fn #name(#(#params),*) -> #ret {
+                #(#prologue)*
+                #(#lets)*
+                #result
+            }
+        }
+    }
+
+    fn used_inputs(&self) -> Vec<Input> {
+        let mut used = vec![false; self.inputs.len()];
+        let mut seen = vec![false; self.dag.nodes.len()];
+        let mut stack = self.roots.to_vec();
+        while let Some(id) = stack.pop() {
+            if std::mem::replace(&mut seen[id], true) {
+                continue;
+            }
+            match &self.dag.nodes[id] {
+                Node::Input(i) => used[*i] = true,
+                Node::Add(ops) | Node::Mul(ops) => stack.extend(ops),
+                Node::Neg(x) => stack.push(*x),
+                Node::Const(_) => {}
+            }
+        }
+        self.inputs
+            .iter()
+            .zip(used)
+            .filter_map(|(input, u)| u.then_some(*input))
+            .collect()
+    }
+
+    /// Bindings of the used inputs: sin/cos once per joint, velocities, signs.
+    fn prologue(&self, used: &[Input]) -> Vec<TokenStream> {
+        let mut lines = Vec::new();
+        for i in 0..self.dof {
+            let index = int(i);
+            let has = |input: Input| used.contains(&input);
+            let (s, c) = (Input::Sin(i).ident(), Input::Cos(i).ident());
+            match (has(Input::Sin(i)), has(Input::Cos(i))) {
+                (true, true) => lines.push(quote! { let (#s, #c) = q[#index].sin_cos(); }),
+                (true, false) => lines.push(quote! { let #s = q[#index].sin(); }),
+                (false, true) => lines.push(quote! { let #c = q[#index].cos(); }),
+                (false, false) => {}
+            }
+            if has(Input::Qd(i)) {
+                let v = Input::Qd(i).ident();
+                lines.push(quote! { let #v = qd[#index]; });
+            }
+            if has(Input::Qdd(i)) {
+                let a = Input::Qdd(i).ident();
+                lines.push(quote! { let #a = qdd[#index]; });
+            }
+            if has(Input::Sign(i)) {
+                let sg = Input::Sign(i).ident();
+                lines.push(quote! { let #sg = sign(qd[#index]); });
+            }
+        }
+        lines
+    }
+
+    /// One `let` per node used more than once, in evaluation order.
+    fn intermediates(&self) -> (Vec<TokenStream>, HashMap<NodeId, Ident>) {
+        let uses = self.use_counts();
+        let mut names = HashMap::new();
+        let mut lets = Vec::new();
+        for id in self.evaluation_order() {
+            let shared = uses[id] > 1;
+            let compound = matches!(self.dag.nodes[id], Node::Add(_) | Node::Mul(_) | Node::Neg(_));
+            if shared && compound {
+                let expr = self.expr(id, &names);
+                let name = format_ident!("t{}", names.len());
+                lets.push(quote! { let #name = #expr; });
+                names.insert(id, name);
+            }
+        }
+        (lets, names)
+    }
+
+    fn use_counts(&self) -> Vec<usize> {
+        let mut uses = vec![0usize; self.dag.nodes.len()];
+        let mut seen = vec![false; self.dag.nodes.len()];
+        let mut stack = self.roots.to_vec();
+        for &r in self.roots {
+            uses[r] += 1;
+        }
+        while let Some(id) = stack.pop() {
+            if std::mem::replace(&mut seen[id], true) {
+                continue;
+            }
+            let children: Vec<NodeId> = match &self.dag.nodes[id] {
+                Node::Add(ops) | Node::Mul(ops) => ops.clone(),
+                Node::Neg(x) => vec![*x],
+                _ => vec![],
+            };
+            for c in children {
+                uses[c] += 1;
+                stack.push(c);
+            }
+        }
+        uses
+    }
+
+    /// Post-order over the roots: every node after its operands.
+    fn evaluation_order(&self) -> Vec<NodeId> {
+        let mut order = Vec::new();
+        let mut state = vec![0u8; self.dag.nodes.len()];
+        for &root in self.roots {
+            let mut stack = vec![(root, false)];
+            while let Some((id, expanded)) = stack.pop() {
+                if expanded {
+                    state[id] = 2;
+                    order.push(id);
+                    continue;
+                }
+                if state[id] != 0 {
+                    continue;
+                }
+                state[id] = 1;
+                stack.push((id, true));
+                match &self.dag.nodes[id] {
+                    Node::Add(ops) | Node::Mul(ops) => {
+                        stack.extend(ops.iter().rev().map(|&o| (o, false)))
+                    }
+                    Node::Neg(x) => stack.push((*x, false)),
+                    _ => {}
+                }
+            }
+        }
+        order
+    }
+
+    fn expr(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> TokenStream {
+        if let Some(name) = names.get(&id) {
+            return quote! { #name };
+        }
+        match &self.dag.nodes[id] {
+            Node::Input(i) => {
+                let ident = self.inputs[*i].ident();
+                quote! { #ident }
+            }
+            Node::Const(c) => literal(*c),
+            Node::Add(ops) => {
+                let mut tokens = self.expr(ops[0], names);
+                for &op in &ops[1..] {
+                    tokens = match self.negated(op, names) {
+                        Some(magnitude) => quote! { #tokens - #magnitude },
+                        None => {
+                            let term = self.expr(op, names);
+                            quote! { #tokens + #term }
+                        }
+                    };
+                }
+                tokens
+            }
+            Node::Mul(ops) => self.product(ops, names),
+            Node::Neg(x) => {
+                let inner = self.factor(*x, names);
+                quote! { -#inner }
+            }
+        }
+    }
+
+    /// `a * b * c`, a leading constant first and unparenthesized.
+    fn product(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> TokenStream {
+        let mut tokens = match self.dag.nodes[ops[0]] {
+            Node::Const(c) if !names.contains_key(&ops[0]) => literal(c),
+            _ => self.factor(ops[0], names),
+        };
+        for &op in &ops[1..] {
+            let factor = self.factor(op, names);
+            tokens = quote! { #tokens * #factor };
+        }
+        tokens
+    }
+
+    /// For a term that reads best subtracted (`-x`, `-k * x`, `-k`), the
+    /// tokens of its magnitude.
+    fn negated(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> Option<TokenStream> {
+        if names.contains_key(&id) {
+            return None;
+        }
+        match &self.dag.nodes[id] {
+            Node::Neg(x) => Some(self.factor(*x, names)),
+            Node::Const(c) if *c < 0.0 => Some(literal(-c)),
+            Node::Mul(ops) => match self.dag.nodes[ops[0]] {
+                Node::Const(c) if c < 0.0 && !names.contains_key(&ops[0]) => {
+                    let mut tokens = literal(-c);
+                    for &op in &ops[1..] {
+                        let factor = self.factor(op, names);
+                        tokens = quote! { #tokens * #factor };
+                    }
+                    Some(tokens)
+                }
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
+    /// An operand of `*`, `-` or unary `-`: sums, negations and negative
+    /// literals in parentheses.
+    fn factor(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> TokenStream {
+        let inner = self.expr(id, names);
+        let needs_parens = !names.contains_key(&id)
+            && match &self.dag.nodes[id] {
+                Node::Add(_) | Node::Neg(_) => true,
+                Node::Const(c) => *c < 0.0,
+                Node::Mul(ops) => matches!(self.dag.nodes[ops[0]], Node::Const(c) if c < 0.0),
+                Node::Input(_) => false,
+            };
+        if needs_parens {
+            quote! { (#inner) }
+        } else {
+            inner
+        }
+    }
+}
+
+fn argument_of(input: Input) -> Argument {
+    match input {
+        Input::Sin(_) | Input::Cos(_) => Argument::Q,
+        Input::Qd(_) | Input::Sign(_) => Argument::Qd,
+        Input::Qdd(_) => Argument::Qdd,
+    }
+}
+
+/// An integer literal without a type suffix.
+pub fn int(value: usize) -> proc_macro2::Literal {
+    proc_macro2::Literal::usize_unsuffixed(value)
+}
+
+/// A float literal with the shortest representation that round-trips.
+pub fn literal(value: f64) -> TokenStream {
+    let text = format!("{:?}", value.abs());
+    let lit = syn::LitFloat::new(&text, Span::call_site());
+    if value.is_sign_negative() && value != 0.0 {
+        quote! { -#lit }
+    } else {
+        quote! { #lit }
+    }
+}

@@ -1,0 +1,38 @@
+//! Robot descriptions to flat Rust dynamics.
+//!
+//! Three steps, like prost-build: [`Description::load`] parses, validates and
+//! lumps fixed and locked joints; `generate` (pure) derives the Lagrangian
+//! with Symbolica and returns the Rust source as a string; [`Config`] writes
+//! it, only when stale, plus a registry for the runtime. Without the
+//! `symbolic` feature only the description side and the fingerprints are
+//! available, so the runtime can parse descriptions without Symbolica.
+
+pub mod description;
+pub mod error;
+pub mod fingerprint;
+pub mod reduce;
+
+#[cfg(feature = "symbolic")]
+mod config;
+#[cfg(feature = "symbolic")]
+mod emit;
+#[cfg(feature = "symbolic")]
+mod generate;
+#[cfg(feature = "symbolic")]
+mod lagrangian;
+pub mod program;
+#[cfg(feature = "symbolic")]
+pub mod session;
+
+#[cfg(feature = "symbolic")]
+pub use config::{Config, Outcome, Report, registry};
+pub use description::{Description, Inertia, Joint, JointEffects, JointKind, Limits, Link, Origin};
+pub use error::DescriptionError;
+#[cfg(feature = "symbolic")]
+pub use generate::{Generated, generate};
+pub use reduce::{Body, Chain, Inertial};
+
+/// The generated file of a model, relative to the models directory.
+pub fn generated_file_name(model: &str) -> String {
+    format!("generated/{model}.rs")
+}

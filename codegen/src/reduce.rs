@@ -1,0 +1,269 @@
+//! DOF reduction: fixed and locked joints are lumped into the moving body
+//! they hang from (thesis Eq. 2.1-2.9, with the full parallel-axis term),
+//! leaving a serial chain of revolute joints.
+
+use std::collections::HashMap;
+
+use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
+
+use crate::description::{Description, Inertia, Joint, JointEffects, JointKind, Limits};
+use crate::error::{KeyPath, Located};
+
+/// A serial chain of moving bodies, base first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chain {
+    /// Gravity acceleration in the base frame, m/s^2.
+    pub gravity: Vector3<f64>,
+    pub bodies: Vec<Body>,
+}
+
+/// A moving body: everything rigidly attached after one revolute joint.
+///
+/// Its frame is the joint frame rotated by q about `axis`. The joint frame is
+/// `rotation`/`translation` away from the previous body's frame (the base
+/// frame for the first body).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Body {
+    /// Name of the moving joint.
+    pub joint: String,
+    /// Name of the link whose frame is the body frame.
+    pub link: String,
+    pub rotation: Matrix3<f64>,
+    pub translation: Vector3<f64>,
+    /// Unit rotation axis in the joint frame.
+    pub axis: Vector3<f64>,
+    pub inertial: Inertial,
+    pub effects: JointEffects,
+    pub limits: Option<Limits>,
+}
+
+/// Mass, centre of mass and inertia about the centre of mass, in body axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inertial {
+    pub mass: f64,
+    pub com: Vector3<f64>,
+    pub inertia: Matrix3<f64>,
+}
+
+impl Inertial {
+    pub const ZERO: Inertial = Inertial {
+        mass: 0.0,
+        com: Vector3::new(0.0, 0.0, 0.0),
+        inertia: Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    };
+
+    /// The ten standard inertial parameters, Pinocchio's order:
+    /// m, m*cx, m*cy, m*cz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz, with the inertia
+    /// taken about the body frame origin.
+    pub fn standard_parameters(&self) -> [f64; 10] {
+        let m = self.mass;
+        let c = self.com;
+        let i = self.inertia + m * (c.norm_squared() * Matrix3::identity() - c * c.transpose());
+        [
+            m,
+            m * c.x,
+            m * c.y,
+            m * c.z,
+            i[(0, 0)],
+            i[(0, 1)],
+            i[(1, 1)],
+            i[(0, 2)],
+            i[(1, 2)],
+            i[(2, 2)],
+        ]
+    }
+
+    /// The same body seen from a frame in which this one sits at
+    /// `translation` with orientation `rotation`.
+    pub fn transformed(&self, rotation: &Matrix3<f64>, translation: &Vector3<f64>) -> Inertial {
+        Inertial {
+            mass: self.mass,
+            com: rotation * self.com + translation,
+            inertia: rotation * self.inertia * rotation.transpose(),
+        }
+    }
+
+    /// Lumps rigidly attached bodies given in one frame: mass sum,
+    /// mass-weighted COM, parallel-axis theorem about the combined COM.
+    pub fn combine(parts: &[Inertial]) -> Inertial {
+        let mass: f64 = parts.iter().map(|p| p.mass).sum();
+        if mass == 0.0 {
+            return Inertial::ZERO;
+        }
+        let com = parts.iter().map(|p| p.mass * p.com).sum::<Vector3<f64>>() / mass;
+        let inertia = parts
+            .iter()
+            .map(|p| {
+                let d = p.com - com;
+                p.inertia + p.mass * (d.norm_squared() * Matrix3::identity() - d * d.transpose())
+            })
+            .sum();
+        Inertial { mass, com, inertia }
+    }
+}
+
+/// Rotation of a URDF-style roll-pitch-yaw: Rz(yaw) * Ry(pitch) * Rx(roll).
+pub fn rpy_matrix(rpy: &[f64; 3]) -> Matrix3<f64> {
+    Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner()
+}
+
+/// Rotation by `angle` about the unit `axis`.
+pub fn axis_angle(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
+    Rotation3::from_axis_angle(&Unit::new_normalize(*axis), angle).into_inner()
+}
+
+/// Where a link sits relative to the moving body that carries it.
+struct Placement {
+    body: Option<usize>,
+    rotation: Matrix3<f64>,
+    translation: Vector3<f64>,
+}
+
+/// Reduces a validated description to its serial chain of moving bodies.
+pub(crate) fn reduce(description: &Description) -> Result<Chain, Located> {
+    let mut bodies: Vec<Body> = Vec::new();
+    let mut parts: Vec<Vec<Inertial>> = Vec::new();
+    let mut parent_body: Vec<Option<usize>> = Vec::new();
+    let children = children_by_parent(description);
+    let root = description.root().name.clone();
+    let mut stack = vec![(
+        root,
+        Placement {
+            body: None,
+            rotation: Matrix3::identity(),
+            translation: Vector3::zeros(),
+        },
+    )];
+    while let Some((link_name, placement)) = stack.pop() {
+        let link = description.link(&link_name).ok_or_else(|| missing(&link_name))?;
+        if let (Some(b), Some(inertial)) = (placement.body, link_inertial(link)) {
+            parts[b].push(inertial.transformed(&placement.rotation, &placement.translation));
+        }
+        for &j in children.get(link_name.as_str()).map_or(&[][..], Vec::as_slice) {
+            let joint = &description.joints[j];
+            let origin_rotation = placement.rotation * rpy_matrix(&joint.origin.rpy);
+            let origin_translation =
+                placement.rotation * Vector3::from(joint.origin.xyz) + placement.translation;
+            let child = if is_moving(joint) {
+                bodies.push(Body {
+                    joint: joint.name.clone(),
+                    link: joint.child.clone(),
+                    rotation: origin_rotation,
+                    translation: origin_translation,
+                    axis: Vector3::from(joint.axis).normalize(),
+                    inertial: Inertial::ZERO,
+                    effects: joint.effects,
+                    limits: joint.limits,
+                });
+                parts.push(Vec::new());
+                parent_body.push(placement.body);
+                Placement {
+                    body: Some(bodies.len() - 1),
+                    rotation: Matrix3::identity(),
+                    translation: Vector3::zeros(),
+                }
+            } else {
+                let angle = joint.locked.unwrap_or(0.0);
+                let turn = if joint.kind == JointKind::Revolute {
+                    axis_angle(&Vector3::from(joint.axis), angle)
+                } else {
+                    Matrix3::identity()
+                };
+                Placement {
+                    body: placement.body,
+                    rotation: origin_rotation * turn,
+                    translation: origin_translation,
+                }
+            };
+            stack.push((joint.child.clone(), child));
+        }
+    }
+    for (body, parts) in bodies.iter_mut().zip(&parts) {
+        body.inertial = Inertial::combine(parts);
+    }
+    order_serial(description, bodies, parent_body)
+}
+
+fn children_by_parent(description: &Description) -> HashMap<&str, Vec<usize>> {
+    let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
+    for (j, joint) in description.joints.iter().enumerate() {
+        children.entry(joint.parent.as_str()).or_default().push(j);
+    }
+    // Reverse so the depth-first stack visits joints in file order.
+    for list in children.values_mut() {
+        list.reverse();
+    }
+    children
+}
+
+fn is_moving(joint: &Joint) -> bool {
+    joint.kind == JointKind::Revolute && joint.locked.is_none()
+}
+
+fn link_inertial(link: &crate::description::Link) -> Option<Inertial> {
+    let mass = link.mass?;
+    let inertia = link.inertia.unwrap_or(Inertia::from_matrix(&Matrix3::zeros()));
+    Some(Inertial {
+        mass,
+        com: Vector3::from(link.com),
+        inertia: inertia.matrix(),
+    })
+}
+
+fn missing(link: &str) -> Located {
+    Located::new(KeyPath::root().key("links"), format!("link `{link}` is not defined"))
+}
+
+/// Checks that each moving body hangs from the previous one and returns the
+/// bodies base first.
+fn order_serial(
+    description: &Description,
+    bodies: Vec<Body>,
+    parent_body: Vec<Option<usize>>,
+) -> Result<Chain, Located> {
+    if bodies.is_empty() {
+        return Err(Located::new(
+            KeyPath::root().key("joints"),
+            "the description has no moving joint: add a revolute joint that is not locked",
+        ));
+    }
+    let mut order = Vec::with_capacity(bodies.len());
+    let mut current = None;
+    while order.len() < bodies.len() {
+        let next: Vec<usize> = (0..bodies.len())
+            .filter(|&b| parent_body[b] == current)
+            .collect();
+        match next.as_slice() {
+            [b] => {
+                order.push(*b);
+                current = Some(*b);
+            }
+            [] => break,
+            [a, b, ..] => {
+                let j = joint_index(description, &bodies[*b].joint);
+                return Err(Located::new(
+                    KeyPath::root().key("joints").index(j),
+                    format!(
+                        "joints `{}` and `{}` both move the same body: only serial chains are supported \
+                         (lock or fix one of them)",
+                        bodies[*a].joint, bodies[*b].joint
+                    ),
+                ));
+            }
+        }
+    }
+    let mut slots: Vec<Option<Body>> = bodies.into_iter().map(Some).collect();
+    let ordered = order.iter().filter_map(|&b| slots[b].take()).collect();
+    Ok(Chain {
+        gravity: Vector3::from(description.gravity),
+        bodies: ordered,
+    })
+}
+
+fn joint_index(description: &Description, name: &str) -> usize {
+    description
+        .joints
+        .iter()
+        .position(|j| j.name == name)
+        .unwrap_or(0)
+}

@@ -1,0 +1,157 @@
+//! Command-line parsing and dispatch. Errors are `anyhow` here only; the
+//! library modules below return typed errors.
+
+use std::ffi::OsString;
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use nalgebra::DMatrix;
+
+use crate::dynamics::{Dynamics, model, model_names};
+use crate::trajectory::{AngleUnit, ReadOptions, Units, read_states_csv, write_torques, write_torques_csv};
+
+/// Exact arm dynamics, physics-synthesized data and model diagnosis.
+#[derive(Debug, Parser)]
+#[command(name = "sdnn", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Output format of results printed to standard output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum Format {
+    #[default]
+    Text,
+    Json,
+}
+
+/// Angle unit of input files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum AngleArg {
+    #[default]
+    Rad,
+    Deg,
+}
+
+impl From<AngleArg> for Units {
+    fn from(a: AngleArg) -> Units {
+        Units {
+            angles: match a {
+                AngleArg::Rad => AngleUnit::Radians,
+                AngleArg::Deg => AngleUnit::Degrees,
+            },
+        }
+    }
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Evaluate a compiled model's joint torques on states
+    /// (columns q1..qN,qd1..qdN,qdd1..qddN; output tau1..tauN).
+    Tau {
+        /// Model name (a models/*.toml file stem); see `sdnn models`.
+        #[arg(long)]
+        model: String,
+        /// State file.
+        #[arg(long)]
+        input: PathBuf,
+        /// Torque file to write; standard output if absent.
+        #[arg(long)]
+        output: Option<PathBuf>,
+        /// Unit of q, qd and qdd in the input.
+        #[arg(long, value_enum, default_value_t)]
+        angles: AngleArg,
+    },
+    /// List the compiled models.
+    Models {
+        #[arg(long, value_enum, default_value_t)]
+        format: Format,
+    },
+}
+
+/// Parses arguments and runs the command.
+pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) if e.use_stderr() => bail!("{}", e.to_string().trim_end()),
+        Err(e) => {
+            // --help and --version
+            print!("{e}");
+            return Ok(());
+        }
+    };
+    match cli.command {
+        Command::Tau {
+            model,
+            input,
+            output,
+            angles,
+        } => tau(&model, &input, output.as_deref(), angles),
+        Command::Models { format } => models(format),
+    }
+}
+
+/// The compiled model with this name, or an error listing the names.
+pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
+    model(name).with_context(|| {
+        format!(
+            "no compiled model named `{name}`; compiled models: {} (add models/{name}.toml and rebuild)",
+            model_names().join(", ")
+        )
+    })
+}
+
+fn tau(name: &str, input: &std::path::Path, output: Option<&std::path::Path>, angles: AngleArg) -> Result<()> {
+    let model = find_model(name)?;
+    let options = ReadOptions {
+        units: angles.into(),
+        dof: Some(model.dof()),
+        min_samples: 1,
+        ..ReadOptions::default()
+    };
+    let states = read_states_csv(input, &options)?;
+    let mut tau = DMatrix::zeros(states.len(), model.dof());
+    for r in 0..states.len() {
+        let row = |m: &DMatrix<f64>| m.row(r).iter().copied().collect::<Vec<f64>>();
+        let t = model.tau(&row(states.q()), &row(states.qd()), &row(states.qdd()))?;
+        tau.set_row(r, &t.transpose());
+    }
+    match output {
+        Some(path) => write_torques_csv(path, &tau)?,
+        None => {
+            let mut out = std::io::stdout().lock();
+            write_torques(&mut out, &tau).context("writing to standard output")?;
+            out.flush().context("writing to standard output")?;
+        }
+    }
+    Ok(())
+}
+
+fn models(format: Format) -> Result<()> {
+    let all = crate::models::MODELS;
+    match format {
+        Format::Json => {
+            let list: Vec<serde_json::Value> = all
+                .iter()
+                .map(|m| {
+                    serde_json::json!({
+                        "name": m.name(),
+                        "dof": m.dof(),
+                        "joints": m.joint_names(),
+                        "parameters": m.parameters().len(),
+                    })
+                })
+                .collect();
+            println!("{}", serde_json::to_string_pretty(&list)?);
+        }
+        Format::Text => {
+            for m in all {
+                println!("{:<28} {} DOF  joints: {}", m.name(), m.dof(), m.joint_names().join(", "));
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,7 @@
+//! Integration tests of the product, one binary (see `util` for helpers).
+
+mod cli;
+mod descriptions;
+mod dynamics;
+mod freshness;
+mod util;

@@ -1,0 +1,79 @@
+//! Helpers shared by the integration tests.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sdnn::oracle::Model;
+
+/// The crate root (where `models/` lives).
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The oracle model of `models/<name>.toml`.
+pub fn oracle(name: &str) -> Model {
+    let path = root().join("models").join(format!("{name}.toml"));
+    let description = codegen::Description::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    Model::from_description(&description)
+}
+
+/// A random joint state: q in [-pi, pi], qd in [-3, 3], qdd in [-10, 10].
+pub struct States {
+    rng: ChaCha8Rng,
+    dof: usize,
+}
+
+impl States {
+    pub fn new(dof: usize, seed: u64) -> States {
+        States {
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            dof,
+        }
+    }
+
+    pub fn next(&mut self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let mut draw = |limit: f64| -> Vec<f64> {
+            (0..self.dof).map(|_| self.rng.random_range(-limit..limit)).collect()
+        };
+        let q = draw(std::f64::consts::PI);
+        let qd = draw(3.0);
+        let qdd = draw(10.0);
+        (q, qd, qdd)
+    }
+}
+
+/// Asserts |a - b| <= 1e-9 |b| or <= 1e-12, with a message naming `what`.
+#[track_caller]
+pub fn assert_close(a: f64, b: f64, what: &str) {
+    let ok = (a - b).abs() <= 1e-9 * b.abs() || (a - b).abs() <= 1e-12;
+    assert!(ok, "{what}: {a} vs {b} (difference {:e})", a - b);
+}
+
+/// A scratch directory removed when dropped.
+pub struct Dir(tempfile::TempDir);
+
+impl Dir {
+    pub fn new() -> Dir {
+        Dir(tempfile::tempdir().expect("temporary directory"))
+    }
+
+    pub fn path(&self) -> &Path {
+        self.0.path()
+    }
+
+    pub fn write(&self, name: &str, contents: &str) -> PathBuf {
+        let path = self.0.path().join(name);
+        std::fs::write(&path, contents).expect("write test file");
+        path
+    }
+}
+
+/// Runs the `sdnn` binary.
+pub fn sdnn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sdnn"))
+        .args(args)
+        .output()
+        .expect("run sdnn")
+}
