@@ -18,8 +18,13 @@ fn main() {
     for result in results {
         match result {
             Ok(report) => {
-                if let Outcome::Regenerated { seconds, operations } = &report.outcome {
-                    let ops: Vec<String> = operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
+                if let Outcome::Regenerated {
+                    seconds,
+                    operations,
+                } = &report.outcome
+                {
+                    let ops: Vec<String> =
+                        operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
                     println!(
                         "cargo:warning=regenerated {} in {seconds:.1} s (operations: {}); commit it with its TOML",
                         report.generated.display(),

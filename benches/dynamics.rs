@@ -19,14 +19,25 @@ fn kinova_3dof(c: &mut Criterion) {
     group.bench_function("generated tau", |b| {
         b.iter(|| kinova::tau(black_box(&q), black_box(&qd), black_box(&qdd)))
     });
-    group.bench_function("generated mass_matrix", |b| b.iter(|| kinova::mass_matrix(black_box(&q))));
+    group.bench_function("generated mass_matrix", |b| {
+        b.iter(|| kinova::mass_matrix(black_box(&q)))
+    });
     group.bench_function("generated regressor", |b| {
         b.iter(|| kinova::regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
     });
     group.bench_function("oracle rnea", |b| {
-        b.iter(|| oracle::rnea(black_box(&model), black_box(&q), black_box(&qd), black_box(&qdd)))
+        b.iter(|| {
+            oracle::rnea(
+                black_box(&model),
+                black_box(&q),
+                black_box(&qd),
+                black_box(&qdd),
+            )
+        })
     });
-    group.bench_function("oracle crba", |b| b.iter(|| oracle::crba(black_box(&model), black_box(&q))));
+    group.bench_function("oracle crba", |b| {
+        b.iter(|| oracle::crba(black_box(&model), black_box(&q)))
+    });
     group.finish();
 }
 

@@ -10,7 +10,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 use nalgebra::DMatrix;
 
 use crate::dynamics::{Dynamics, model, model_names};
-use crate::trajectory::{AngleUnit, ReadOptions, Units, read_states_csv, write_torques, write_torques_csv};
+use crate::trajectory::{
+    AngleUnit, ReadOptions, Units, read_states_csv, write_torques, write_torques_csv,
+};
 
 /// Exact arm dynamics, physics-synthesized data and model diagnosis.
 #[derive(Debug, Parser)]
@@ -104,7 +106,12 @@ pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
     })
 }
 
-fn tau(name: &str, input: &std::path::Path, output: Option<&std::path::Path>, angles: AngleArg) -> Result<()> {
+fn tau(
+    name: &str,
+    input: &std::path::Path,
+    output: Option<&std::path::Path>,
+    angles: AngleArg,
+) -> Result<()> {
     let model = find_model(name)?;
     let options = ReadOptions {
         units: angles.into(),
@@ -149,7 +156,12 @@ fn models(format: Format) -> Result<()> {
         }
         Format::Text => {
             for m in all {
-                println!("{:<28} {} DOF  joints: {}", m.name(), m.dof(), m.joint_names().join(", "));
+                println!(
+                    "{:<28} {} DOF  joints: {}",
+                    m.name(),
+                    m.dof(),
+                    m.joint_names().join(", ")
+                );
             }
         }
     }

@@ -40,7 +40,8 @@ pub trait Dynamics: Sync {
     /// viscous*qd + coulomb*sign(qd) + offset.
     fn effects(&self, qd: &[f64]) -> Result<DVector<f64>, DimensionError>;
     /// Y(q, qd, qdd) with tau = Y * parameters.
-    fn regressor(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<DMatrix<f64>, DimensionError>;
+    fn regressor(&self, q: &[f64], qd: &[f64], qdd: &[f64])
+    -> Result<DMatrix<f64>, DimensionError>;
 }
 
 /// Borrows a slice as a fixed-size array or says which argument is off.
@@ -140,7 +141,9 @@ macro_rules! compiled_model {
                     fixed::<DOF>($name, "qd", qd)?,
                     fixed::<DOF>($name, "qdd", qdd)?,
                 );
-                Ok(nalgebra::DMatrix::from_fn(DOF, NUM_PARAMETERS, |r, c| y[r][c]))
+                Ok(nalgebra::DMatrix::from_fn(DOF, NUM_PARAMETERS, |r, c| {
+                    y[r][c]
+                }))
             }
         }
     };
@@ -148,7 +151,10 @@ macro_rules! compiled_model {
 
 /// The compiled model with this name.
 pub fn model(name: &str) -> Option<&'static dyn Dynamics> {
-    crate::models::MODELS.iter().copied().find(|m| m.name() == name)
+    crate::models::MODELS
+        .iter()
+        .copied()
+        .find(|m| m.name() == name)
 }
 
 /// Names of every compiled model, sorted.

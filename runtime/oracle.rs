@@ -96,7 +96,8 @@ pub fn coulomb_sign(qd: f64) -> f64 {
 
 /// Joint torques tau = M(q) qdd + c(q, qd) + g(q) + effects (dim model.dof()).
 pub fn rnea(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DVector<f64> {
-    let params: Vec<[f64; INERTIAL_PARAMETERS]> = model.bodies.iter().map(|b| b.parameters).collect();
+    let params: Vec<[f64; INERTIAL_PARAMETERS]> =
+        model.bodies.iter().map(|b| b.parameters).collect();
     let mut tau = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
     for (i, body) in model.bodies.iter().enumerate() {
         tau[i] += effects_torque(&body.effects, qd[i], qdd[i]);
@@ -206,8 +207,8 @@ fn rigid_body_torque(
     for i in (0..n).rev() {
         if i + 1 < n {
             let child_force = rotations[i + 1] * forces[i + 1];
-            let child_moment =
-                rotations[i + 1] * moments[i + 1] + model.bodies[i + 1].translation.cross(&child_force);
+            let child_moment = rotations[i + 1] * moments[i + 1]
+                + model.bodies[i + 1].translation.cross(&child_force);
             forces[i] += child_force;
             moments[i] += child_moment;
         }
@@ -255,7 +256,11 @@ mod tests {
         for &(q, qd, qdd) in &[(0.3, 1.2, -0.5), (-2.0, -0.4, 3.0), (1.0, 0.0, 0.0)] {
             let tau = rnea(&model, &[q], &[qd], &[qdd])[0];
             let inertia = 0.05 + 2.0 * 0.25 + 0.01;
-            let expected = inertia * qdd + 2.0 * 9.81 * 0.5 * f64::cos(q) + 0.3 * qd + 0.2 * coulomb_sign(qd) + 0.05;
+            let expected = inertia * qdd
+                + 2.0 * 9.81 * 0.5 * f64::cos(q)
+                + 0.3 * qd
+                + 0.2 * coulomb_sign(qd)
+                + 0.05;
             assert!((tau - expected).abs() < 1e-12, "{tau} vs {expected}");
         }
     }

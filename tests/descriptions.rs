@@ -60,7 +60,10 @@ fn error_after(from: &str, to: &str) -> String {
 #[track_caller]
 fn assert_mentions(message: &str, parts: &[&str]) {
     for part in parts {
-        assert!(message.contains(part), "`{message}` does not mention `{part}`");
+        assert!(
+            message.contains(part),
+            "`{message}` does not mention `{part}`"
+        );
     }
 }
 
@@ -75,7 +78,7 @@ fn the_valid_fixture_parses() {
 #[test]
 fn syntax_error_names_file_line_and_column() {
     let message = error_after("mass = 1.0", "mass = = 1.0");
-    assert_mentions(&message, &["models/robot.toml:10:"]);
+    assert_mentions(&message, &["models/robot.toml:9:"]);
 }
 
 #[test]
@@ -87,27 +90,43 @@ fn missing_key_is_named() {
 #[test]
 fn unknown_key_is_named_with_the_expected_ones() {
     let message = error_after("mass = 0.5", "mass = 0.5\nmas = 2.0");
-    assert_mentions(&message, &["models/robot.toml:17:", "unknown field `mas`", "expected one of"]);
+    assert_mentions(
+        &message,
+        &[
+            "models/robot.toml:16:",
+            "unknown field `mas`",
+            "expected one of",
+        ],
+    );
 }
 
 #[test]
 fn wrong_type_is_named() {
     let message = error_after("mass = 1.0", "mass = \"heavy\"");
-    assert_mentions(&message, &["models/robot.toml:10:", "invalid type"]);
+    assert_mentions(&message, &["models/robot.toml:9:", "invalid type"]);
 }
 
 #[test]
 fn zero_or_negative_mass_is_rejected() {
     for bad in ["mass = 0.0", "mass = -1.0"] {
         let message = error_after("mass = 1.0", bad);
-        assert_mentions(&message, &["models/robot.toml:10:", "`links[1].mass`", "> 0 kg"]);
+        assert_mentions(
+            &message,
+            &["models/robot.toml:9:", "`links[1].mass`", "> 0 kg"],
+        );
     }
 }
 
 #[test]
 fn non_finite_values_are_rejected() {
-    assert_mentions(&error_after("mass = 1.0", "mass = nan"), &["`links[1].mass`", "finite"]);
-    assert_mentions(&error_after("com = [0.1, 0.0, 0.0]", "com = [inf, 0.0, 0.0]"), &["`links[1].com`"]);
+    assert_mentions(
+        &error_after("mass = 1.0", "mass = nan"),
+        &["`links[1].mass`", "finite"],
+    );
+    assert_mentions(
+        &error_after("com = [0.1, 0.0, 0.0]", "com = [inf, 0.0, 0.0]"),
+        &["`links[1].com`"],
+    );
     assert_mentions(
         &error_after("axis = [0.0, 1.0, 0.0]", "axis = [0.0, nan, 0.0]"),
         &["`joints[1].axis`", "finite"],
@@ -120,7 +139,7 @@ fn non_symmetric_inertia_matrix_is_rejected() {
         "inertia = { ixx = 0.01, iyy = 0.02, izz = 0.02 }",
         "inertia = [[0.01, 0.001, 0.0], [0.0, 0.02, 0.0], [0.0, 0.0, 0.02]]",
     );
-    assert_mentions(&message, &["models/robot.toml:12:", "not symmetric"]);
+    assert_mentions(&message, &["models/robot.toml:11:", "not symmetric"]);
 }
 
 #[test]
@@ -129,14 +148,28 @@ fn non_positive_definite_inertia_is_rejected() {
         "inertia = { ixx = 0.01, iyy = 0.02, izz = 0.02 }",
         "inertia = { ixx = 0.01, iyy = 0.02, izz = 0.02, ixy = 0.05 }",
     );
-    assert_mentions(&message, &["models/robot.toml:12:", "`links[1].inertia`", "not positive definite"]);
+    assert_mentions(
+        &message,
+        &[
+            "models/robot.toml:11:",
+            "`links[1].inertia`",
+            "not positive definite",
+        ],
+    );
 }
 
 #[test]
 fn triangle_inequality_violation_is_rejected_unless_opted_in() {
     let bad = "inertia = { ixx = 0.01, iyy = 0.01, izz = 0.05 }";
     let message = error_after("inertia = { ixx = 0.01, iyy = 0.02, izz = 0.02 }", bad);
-    assert_mentions(&message, &["`links[1].inertia`", "triangle inequality", "nonphysical_inertia"]);
+    assert_mentions(
+        &message,
+        &[
+            "`links[1].inertia`",
+            "triangle inequality",
+            "nonphysical_inertia",
+        ],
+    );
     let opted_in = VALID.replacen(
         "inertia = { ixx = 0.01, iyy = 0.02, izz = 0.02 }",
         &format!("nonphysical_inertia = \"test\"\n{bad}"),
@@ -148,7 +181,10 @@ fn triangle_inequality_violation_is_rejected_unless_opted_in() {
 #[test]
 fn zero_axis_is_rejected() {
     let message = error_after("axis = [0.0, 1.0, 0.0]", "axis = [0.0, 0.0, 0.0]");
-    assert_mentions(&message, &["models/robot.toml:42:", "`joints[1].axis`", "zero"]);
+    assert_mentions(
+        &message,
+        &["models/robot.toml:32:", "`joints[1].axis`", "zero"],
+    );
 }
 
 #[test]
@@ -162,18 +198,27 @@ fn duplicate_names_are_rejected() {
 #[test]
 fn joint_to_a_missing_link_is_rejected() {
     let message = error_after("child = \"b\"", "child = \"c\"");
-    assert_mentions(&message, &["models/robot.toml:40:", "`joints[1].child`", "link `c`"]);
+    assert_mentions(
+        &message,
+        &["models/robot.toml:30:", "`joints[1].child`", "link `c`"],
+    );
 }
 
 #[test]
 fn link_with_two_parents_is_rejected() {
-    let message = error_after("parent = \"a\"\nchild = \"b\"", "parent = \"a\"\nchild = \"a\"");
+    let message = error_after(
+        "parent = \"a\"\nchild = \"b\"",
+        "parent = \"a\"\nchild = \"a\"",
+    );
     assert_mentions(&message, &["`joints[1].child`"]);
     let extra = format!(
         "{VALID}\n[[joints]]\nname = \"j3\"\ntype = \"fixed\"\nparent = \"base\"\nchild = \"b\"\n"
     );
     let message = parse(&extra).unwrap_err().to_string();
-    assert_mentions(&message, &["`joints[2].child`", "two parents", "`j2`", "`j3`"]);
+    assert_mentions(
+        &message,
+        &["`joints[2].child`", "two parents", "`j2`", "`j3`"],
+    );
 }
 
 #[test]
@@ -187,7 +232,9 @@ fn cycle_is_rejected() {
 
 #[test]
 fn empty_chain_is_rejected() {
-    let message = parse("[[links]]\nname = \"base\"\n").unwrap_err().to_string();
+    let message = parse("[[links]]\nname = \"base\"\n")
+        .unwrap_err()
+        .to_string();
     assert_mentions(&message, &["no moving joint"]);
     let message = parse("").unwrap_err().to_string();
     assert_mentions(&message, &["no [[links]]"]);
@@ -214,16 +261,24 @@ fn effects_on_a_fixed_joint_are_rejected() {
 
 #[test]
 fn missing_file_is_named() {
-    let message = Description::load("models/does_not_exist.toml").unwrap_err().to_string();
+    let message = Description::load("models/does_not_exist.toml")
+        .unwrap_err()
+        .to_string();
     assert_mentions(&message, &["models/does_not_exist.toml", "cannot read"]);
 }
 
 #[test]
 fn garbage_never_panics() {
     let dir = Dir::new();
-    for (i, source) in ["\u{0}\u{1}", "[[links]]\nname = 3", "links = 5", "[[joints]]\n", "gravity = [1]"]
-        .iter()
-        .enumerate()
+    for (i, source) in [
+        "\u{0}\u{1}",
+        "[[links]]\nname = 3",
+        "links = 5",
+        "[[joints]]\n",
+        "gravity = [1]",
+    ]
+    .iter()
+    .enumerate()
     {
         let path = dir.write(&format!("g{i}.toml"), source);
         assert!(Description::load(&path).is_err());
@@ -244,8 +299,15 @@ fn fixed_child_body_equals_hand_lumped_link() {
 
     // By hand: the tool frame is rotated +90 deg about y and 0.3 m up in b's frame.
     let r = Matrix3::new(0.0, 0.0, 1.0, 0.0, 1.0, 0.0, -1.0, 0.0, 0.0);
-    let (m_b, c_b, i_b) = (0.5, Vector3::new(0.0, 0.0, 0.2), Matrix3::from_diagonal(&Vector3::new(0.01, 0.01, 0.005)));
-    let (m_t, c_t) = (0.4, r * Vector3::new(0.02, 0.0, 0.05) + Vector3::new(0.0, 0.0, 0.3));
+    let (m_b, c_b, i_b) = (
+        0.5,
+        Vector3::new(0.0, 0.0, 0.2),
+        Matrix3::from_diagonal(&Vector3::new(0.01, 0.01, 0.005)),
+    );
+    let (m_t, c_t) = (
+        0.4,
+        r * Vector3::new(0.02, 0.0, 0.05) + Vector3::new(0.0, 0.0, 0.3),
+    );
     let i_t = r * Matrix3::from_diagonal(&Vector3::new(0.002, 0.003, 0.001)) * r.transpose();
     let mass = m_b + m_t;
     let com = (m_b * c_b + m_t * c_t) / mass;
@@ -278,7 +340,11 @@ fn fixed_child_body_equals_hand_lumped_link() {
 /// A locked revolute joint behaves as a fixed joint at its angle.
 #[test]
 fn locked_joint_is_a_fixed_joint_at_its_angle() {
-    let locked = VALID.replacen("axis = [0.0, 1.0, 0.0]", "axis = [0.0, 1.0, 0.0]\nlocked = 0.7", 1);
+    let locked = VALID.replacen(
+        "axis = [0.0, 1.0, 0.0]",
+        "axis = [0.0, 1.0, 0.0]\nlocked = 0.7",
+        1,
+    );
     let three = format!(
         "{locked}\n[[links]]\nname = \"c\"\nmass = 0.3\ncom = [0.1, 0.0, 0.0]\n\
          inertia = {{ ixx = 0.001, iyy = 0.002, izz = 0.002 }}\n\n\
@@ -302,7 +368,10 @@ fn locked_joint_is_a_fixed_joint_at_its_angle() {
     let mut states = States::new(2, 8);
     for _ in 0..200 {
         let (q, qd, qdd) = states.next();
-        let (ta, tb) = (oracle::rnea(&a, &q, &qd, &qdd), oracle::rnea(&b, &q, &qd, &qdd));
+        let (ta, tb) = (
+            oracle::rnea(&a, &q, &qd, &qdd),
+            oracle::rnea(&b, &q, &qd, &qdd),
+        );
         for i in 0..2 {
             assert_close(ta[i], tb[i], "locked vs fixed");
         }

@@ -41,7 +41,11 @@ fn tau_equals_rnea_on_random_states() {
             let (q, qd, qdd) = states.next();
             let generated = model.tau(&q, &qd, &qdd).unwrap();
             let reference = oracle::rnea(oracle, &q, &qd, &qdd);
-            assert_vectors_close(&generated, &reference, &format!("{} tau, state {k}", model.name()));
+            assert_vectors_close(
+                &generated,
+                &reference,
+                &format!("{} tau, state {k}", model.name()),
+            );
         }
     });
 }
@@ -53,9 +57,22 @@ fn mass_matrix_is_symmetric_positive_definite_and_equals_crba() {
         for k in 0..RANDOM_STATES / 10 {
             let (q, _, _) = states.next();
             let m = model.mass_matrix(&q).unwrap();
-            assert_eq!(m, m.transpose(), "{} M not symmetric at state {k}", model.name());
-            assert!(m.clone().cholesky().is_some(), "{} M not positive definite", model.name());
-            assert_matrices_close(&m, &oracle::crba(oracle, &q), &format!("{} M, state {k}", model.name()));
+            assert_eq!(
+                m,
+                m.transpose(),
+                "{} M not symmetric at state {k}",
+                model.name()
+            );
+            assert!(
+                m.clone().cholesky().is_some(),
+                "{} M not positive definite",
+                model.name()
+            );
+            assert_matrices_close(
+                &m,
+                &oracle::crba(oracle, &q),
+                &format!("{} M, state {k}", model.name()),
+            );
         }
     });
 }
@@ -69,11 +86,23 @@ fn gravity_coriolis_and_effects_decompose_tau() {
             let (q, qd, qdd) = states.next();
             let name = model.name();
             let g = model.gravity(&q).unwrap();
-            assert_vectors_close(&g, &oracle::gravity(oracle, &q), &format!("{name} g, state {k}"));
+            assert_vectors_close(
+                &g,
+                &oracle::gravity(oracle, &q),
+                &format!("{name} g, state {k}"),
+            );
             let at_rest = model.tau(&q, &zero, &zero).unwrap() - model.effects(&zero).unwrap();
-            assert_vectors_close(&g, &at_rest, &format!("{name} g = tau(q, 0, 0) - effects(0)"));
+            assert_vectors_close(
+                &g,
+                &at_rest,
+                &format!("{name} g = tau(q, 0, 0) - effects(0)"),
+            );
             let c = model.coriolis(&q, &qd).unwrap();
-            assert_vectors_close(&c, &oracle::coriolis(oracle, &q, &qd), &format!("{name} c, state {k}"));
+            assert_vectors_close(
+                &c,
+                &oracle::coriolis(oracle, &q, &qd),
+                &format!("{name} c, state {k}"),
+            );
             let m = model.mass_matrix(&q).unwrap();
             let sum = &m * DVector::from_column_slice(&qdd) + &c + &g + model.effects(&qd).unwrap();
             let tau = model.tau(&q, &qd, &qdd).unwrap();
@@ -86,14 +115,22 @@ fn gravity_coriolis_and_effects_decompose_tau() {
 fn regressor_times_parameters_equals_tau() {
     each_model(|model, oracle| {
         let parameters = DVector::from_column_slice(model.parameters());
-        assert_vectors_close(&parameters, &oracle.parameters(), &format!("{} PARAMETERS", model.name()));
+        assert_vectors_close(
+            &parameters,
+            &oracle.parameters(),
+            &format!("{} PARAMETERS", model.name()),
+        );
         assert_eq!(model.parameter_names().len(), parameters.len());
         let mut states = States::new(model.dof(), 4);
         for k in 0..RANDOM_STATES / 10 {
             let (q, qd, qdd) = states.next();
             let y = model.regressor(&q, &qd, &qdd).unwrap();
             let tau = model.tau(&q, &qd, &qdd).unwrap();
-            assert_vectors_close(&(&y * &parameters), &tau, &format!("{} Y * p, state {k}", model.name()));
+            assert_vectors_close(
+                &(&y * &parameters),
+                &tau,
+                &format!("{} Y * p, state {k}", model.name()),
+            );
             let reference = oracle::regressor(oracle, &q, &qd, &qdd);
             assert_matrices_close(&y, &reference, &format!("{} Y, state {k}", model.name()));
         }

@@ -29,7 +29,11 @@ fn generated_models_are_fresh() {
             ));
         }
     }
-    assert!(count >= 2, "expected the shipped models in {}", models.display());
+    assert!(
+        count >= 2,
+        "expected the shipped models in {}",
+        models.display()
+    );
     assert!(stale.is_empty(), "{}", stale.join("\n"));
 }
 

@@ -35,7 +35,9 @@ impl States {
 
     pub fn next(&mut self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let mut draw = |limit: f64| -> Vec<f64> {
-            (0..self.dof).map(|_| self.rng.random_range(-limit..limit)).collect()
+            (0..self.dof)
+                .map(|_| self.rng.random_range(-limit..limit))
+                .collect()
         };
         let q = draw(std::f64::consts::PI);
         let qd = draw(3.0);

@@ -76,7 +76,11 @@ impl Config {
 
     /// Processes every description; one result per file, in name order.
     pub fn run(&self) -> Result<Vec<Result<Report, String>>, String> {
-        Ok(self.descriptions()?.iter().map(|toml| self.run_one(toml)).collect())
+        Ok(self
+            .descriptions()?
+            .iter()
+            .map(|toml| self.run_one(toml))
+            .collect())
     }
 
     /// Processes one description file.
@@ -85,7 +89,9 @@ impl Config {
             .map_err(|e| format!("{}: cannot read: {e}", toml.display()))?;
         let description = Description::load(toml).map_err(|e| e.to_string())?;
         check_model_name(&description.name, toml)?;
-        let generated = self.models_dir.join(crate::generated_file_name(&description.name));
+        let generated = self
+            .models_dir
+            .join(crate::generated_file_name(&description.name));
         let existing = std::fs::read_to_string(&generated).unwrap_or_default();
         let outcome = if is_fresh(&source, &existing) && !self.force {
             Outcome::Fresh
@@ -137,7 +143,9 @@ pub fn registry(names: &[String]) -> String {
 
 fn check_model_name(name: &str, toml: &Path) -> Result<(), String> {
     let mut chars = name.chars();
-    let valid = chars.next().is_some_and(|c| c.is_ascii_lowercase() || c == '_')
+    let valid = chars
+        .next()
+        .is_some_and(|c| c.is_ascii_lowercase() || c == '_')
         && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
     if valid {
         Ok(())

@@ -232,15 +232,13 @@ impl<'de> Deserialize<'de> for Inertia {
 
 /// Largest absolute entry and largest asymmetry |m_rc - m_cr| of a matrix.
 fn symmetric_parts(m: &[[f64; 3]; 3]) -> (f64, f64) {
-    let mut largest: f64 = 0.0;
-    let mut skew: f64 = 0.0;
-    for r in 0..3 {
-        for c in 0..3 {
-            largest = largest.max(m[r][c].abs());
-            skew = skew.max((m[r][c] - m[c][r]).abs());
-        }
-    }
-    (largest, skew)
+    let cells = (0..3).flat_map(|r| (0..3).map(move |c| (r, c)));
+    cells.fold((0.0, 0.0), |(largest, skew): (f64, f64), (r, c)| {
+        (
+            largest.max(m[r][c].abs()),
+            skew.max((m[r][c] - m[c][r]).abs()),
+        )
+    })
 }
 
 impl Description {
@@ -448,16 +446,25 @@ fn validate_link(link: &Link, at: KeyPath) -> Result<(), Located> {
     if !mass.is_finite() || mass <= 0.0 {
         return Err(Located::new(
             at.key("mass"),
-            format!("mass of link `{}` must be a finite number > 0 kg, found {mass}", link.name),
+            format!(
+                "mass of link `{}` must be a finite number > 0 kg, found {mass}",
+                link.name
+            ),
         ));
     }
     if !link.com.iter().all(|c| c.is_finite()) {
-        return Err(Located::new(at.key("com"), "com must be finite numbers (m)"));
+        return Err(Located::new(
+            at.key("com"),
+            "com must be finite numbers (m)",
+        ));
     }
     let Some(inertia) = link.inertia else {
         return Err(Located::new(
             at.key("inertia"),
-            format!("link `{}` has a mass but no `inertia` about its centre of mass", link.name),
+            format!(
+                "link `{}` has a mass but no `inertia` about its centre of mass",
+                link.name
+            ),
         ));
     };
     validate_inertia(&inertia, link, at.key("inertia"))
@@ -465,7 +472,10 @@ fn validate_link(link: &Link, at: KeyPath) -> Result<(), Located> {
 
 fn validate_inertia(inertia: &Inertia, link: &Link, at: KeyPath) -> Result<(), Located> {
     if !inertia.values().iter().all(|v| v.is_finite()) {
-        return Err(Located::new(at, "inertia entries must be finite numbers (kg m^2)"));
+        return Err(Located::new(
+            at,
+            "inertia entries must be finite numbers (kg m^2)",
+        ));
     }
     let eig = SymmetricEigen::new(inertia.matrix()).eigenvalues;
     let mut p = [eig[0], eig[1], eig[2]];
@@ -495,7 +505,10 @@ fn validate_inertia(inertia: &Inertia, link: &Link, at: KeyPath) -> Result<(), L
 fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
     let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
     if !finite(&joint.origin.xyz) || !finite(&joint.origin.rpy) {
-        return Err(Located::new(at.key("origin"), "origin xyz and rpy must be finite numbers"));
+        return Err(Located::new(
+            at.key("origin"),
+            "origin xyz and rpy must be finite numbers",
+        ));
     }
     if !finite(&joint.axis) {
         return Err(Located::new(at.key("axis"), "axis must be finite numbers"));
@@ -503,49 +516,77 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
     if joint.kind == JointKind::Revolute && norm(&joint.axis) < 1e-12 {
         return Err(Located::new(
             at.key("axis"),
-            format!("axis of joint `{}` is zero; give a non-zero direction", joint.name),
+            format!(
+                "axis of joint `{}` is zero; give a non-zero direction",
+                joint.name
+            ),
         ));
     }
     if joint.child == joint.parent {
         return Err(Located::new(
             at.key("child"),
-            format!("joint `{}` connects link `{}` to itself", joint.name, joint.child),
+            format!(
+                "joint `{}` connects link `{}` to itself",
+                joint.name, joint.child
+            ),
         ));
     }
     let e = &joint.effects;
     if !finite(&[e.armature, e.viscous, e.coulomb, e.offset]) {
-        return Err(Located::new(at.key("effects"), "effects must be finite numbers"));
+        return Err(Located::new(
+            at.key("effects"),
+            "effects must be finite numbers",
+        ));
     }
-    for (key, value) in [("armature", e.armature), ("viscous", e.viscous), ("coulomb", e.coulomb)] {
+    for (key, value) in [
+        ("armature", e.armature),
+        ("viscous", e.viscous),
+        ("coulomb", e.coulomb),
+    ] {
         if value < 0.0 {
             return Err(Located::new(
                 at.key("effects").key(key),
-                format!("{key} of joint `{}` must be >= 0, found {value}", joint.name),
+                format!(
+                    "{key} of joint `{}` must be >= 0, found {value}",
+                    joint.name
+                ),
             ));
         }
     }
     if let Some(angle) = joint.locked {
         if joint.kind != JointKind::Revolute {
-            return Err(Located::new(at.key("locked"), "only a revolute joint can be locked"));
+            return Err(Located::new(
+                at.key("locked"),
+                "only a revolute joint can be locked",
+            ));
         }
         if !angle.is_finite() {
-            return Err(Located::new(at.key("locked"), "locked angle must be a finite number (rad)"));
+            return Err(Located::new(
+                at.key("locked"),
+                "locked angle must be a finite number (rad)",
+            ));
         }
     }
     let moving = joint.kind == JointKind::Revolute && joint.locked.is_none();
     if !moving && *e != JointEffects::default() {
         return Err(Located::new(
             at.key("effects"),
-            format!("joint `{}` does not move (fixed or locked), so it cannot have effects", joint.name),
+            format!(
+                "joint `{}` does not move (fixed or locked), so it cannot have effects",
+                joint.name
+            ),
         ));
     }
-    if let Some(l) = joint.limits {
-        if !finite(&[l.lower, l.upper]) || l.lower > l.upper {
-            return Err(Located::new(
-                at.key("limits"),
-                format!("limits need finite lower <= upper, found {} > {}", l.lower, l.upper),
-            ));
-        }
+    if let Some(l) = joint.limits
+        && (!finite(&[l.lower, l.upper]) || l.lower > l.upper)
+    {
+        return Err(Located::new(
+            at.key("limits"),
+            format!(
+                "limits need finite lower <= upper, found {} > {}",
+                l.lower, l.upper
+            ),
+        ));
     }
     Ok(())
 }

@@ -175,7 +175,10 @@ impl Function<'_> {
         let mut lets = Vec::new();
         for id in self.evaluation_order() {
             let shared = uses[id] > 1;
-            let compound = matches!(self.dag.nodes[id], Node::Add(_) | Node::Mul(_) | Node::Neg(_));
+            let compound = matches!(
+                self.dag.nodes[id],
+                Node::Add(_) | Node::Mul(_) | Node::Neg(_)
+            );
             if shared && compound {
                 let expr = self.expr(id, &names);
                 let name = format_ident!("t{}", names.len());

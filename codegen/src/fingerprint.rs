@@ -79,7 +79,8 @@ mod tests {
     #[test]
     fn recorded_fingerprint_is_read_from_the_header() {
         let f = fingerprint("x");
-        let file = format!("// header\n{FINGERPRINT_PREFIX}{f} (toml sha256 + generator)\nfn x() {{}}\n");
+        let file =
+            format!("// header\n{FINGERPRINT_PREFIX}{f} (toml sha256 + generator)\nfn x() {{}}\n");
         assert!(is_fresh("x", &file));
         assert!(!is_fresh("y", &file));
         assert_eq!(recorded_fingerprint("fn x() {}"), None);

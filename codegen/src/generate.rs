@@ -18,7 +18,9 @@ use crate::program::{Dag, NodeId, Poly};
 use crate::reduce::Chain;
 
 /// Names of the ten inertial parameters of body i, Pinocchio's order.
-pub const INERTIAL_NAMES: [&str; 10] = ["m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz"];
+pub const INERTIAL_NAMES: [&str; 10] = [
+    "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
+];
 /// Names of the joint-effect parameters of joint i.
 pub const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
 
@@ -125,14 +127,24 @@ struct Spec<'a> {
 
 impl Spec<'_> {
     fn emit(&self, inputs: &[Input]) -> (TokenStream, usize) {
-        let mut dag = Dag::default();
         let pairs = trig_pairs(inputs);
-        let roots: Vec<NodeId> = self
-            .outputs
+        let reduced: Vec<Poly> = self.outputs.iter().map(|p| p.reduce_trig(&pairs)).collect();
+        // Two factoring orders; keep the cheaper program.
+        let greedy = vec![0; inputs.len()];
+        let motion_first: Vec<u8> = inputs
             .iter()
-            .map(|p| dag.horner(&p.reduce_trig(&pairs)))
+            .map(|i| u8::from(!matches!(i, Input::Sin(_) | Input::Cos(_))))
             .collect();
-        let ops = dag.operation_count(&roots);
+        let (dag, roots, ops) = [greedy, motion_first]
+            .iter()
+            .map(|priority| {
+                let mut dag = Dag::default();
+                let roots: Vec<NodeId> = reduced.iter().map(|p| dag.horner(p, priority)).collect();
+                let ops = dag.operation_count(&roots);
+                (dag, roots, ops)
+            })
+            .min_by_key(|(_, _, ops)| *ops)
+            .expect("two candidates");
         let dof = inputs.len() / 5;
         let function = Function {
             name: self.name,
@@ -204,7 +216,9 @@ impl Model {
     /// Terms of `p` whose qd and qdd degrees satisfy the filter.
     fn select(&self, p: &Poly, keep: impl Fn(u32, u32) -> bool) -> Poly {
         let qd: Vec<usize> = (0..self.dof).map(|i| self.position(Input::Qd(i))).collect();
-        let qdd: Vec<usize> = (0..self.dof).map(|i| self.position(Input::Qdd(i))).collect();
+        let qdd: Vec<usize> = (0..self.dof)
+            .map(|i| self.position(Input::Qdd(i)))
+            .collect();
         let degree = |e: &[u32], idx: &[usize]| idx.iter().map(|&k| e[k]).sum::<u32>();
         Poly::from_terms(
             p.terms()
@@ -246,12 +260,20 @@ impl Model {
     }
 
     fn sum(a: &Poly, b: &Poly) -> Poly {
-        Poly::from_terms(a.terms().iter().chain(b.terms()).cloned().collect::<Vec<_>>())
+        Poly::from_terms(
+            a.terms()
+                .iter()
+                .chain(b.terms())
+                .cloned()
+                .collect::<Vec<_>>(),
+        )
     }
 
     fn functions(&self) -> Vec<Spec<'static>> {
         let n = self.dof;
-        let tau = (0..n).map(|i| Model::sum(&self.tau_rigid[i], &self.effects(i, true))).collect();
+        let tau = (0..n)
+            .map(|i| Model::sum(&self.tau_rigid[i], &self.effects(i, true)))
+            .collect();
         let mut mass: Vec<Poly> = Vec::with_capacity(n * n);
         for i in 0..n {
             for j in 0..n {
@@ -267,8 +289,16 @@ impl Model {
                 mass.push(m);
             }
         }
-        let gravity = self.tau_rigid.iter().map(|p| self.select(p, |d, a| d == 0 && a == 0)).collect();
-        let coriolis = self.tau_rigid.iter().map(|p| self.select(p, |d, a| d > 0 && a == 0)).collect();
+        let gravity = self
+            .tau_rigid
+            .iter()
+            .map(|p| self.select(p, |d, a| d == 0 && a == 0))
+            .collect();
+        let coriolis = self
+            .tau_rigid
+            .iter()
+            .map(|p| self.select(p, |d, a| d > 0 && a == 0))
+            .collect();
         let effects = (0..n).map(|i| self.effects(i, false)).collect();
         vec![
             Spec {
@@ -301,15 +331,17 @@ impl Model {
             },
             Spec {
                 name: "effects",
-                doc: " Joint effects without armature: viscous*qd + coulomb*sign(qd) + offset, N m."
-                    .into(),
+                doc:
+                    " Joint effects without armature: viscous*qd + coulomb*sign(qd) + offset, N m."
+                        .into(),
                 arguments: &[Argument::Qd],
                 shape: Shape::Vector(n),
                 outputs: effects,
             },
             Spec {
                 name: "regressor",
-                doc: " Regressor Y(q, qd, qdd) with tau = Y * PARAMETERS (see PARAMETER_NAMES).".into(),
+                doc: " Regressor Y(q, qd, qdd) with tau = Y * PARAMETERS (see PARAMETER_NAMES)."
+                    .into(),
                 arguments: &[Argument::Q, Argument::Qd, Argument::Qdd],
                 shape: Shape::Matrix(n, 14 * n),
                 outputs: self.regressor(),
@@ -324,12 +356,20 @@ impl Model {
             rows.extend(self.regressor_rigid[i].iter().cloned());
             for j in 0..n {
                 let own = |input, value| {
-                    if i == j { self.variable(input, value) } else { Poly::default() }
+                    if i == j {
+                        self.variable(input, value)
+                    } else {
+                        Poly::default()
+                    }
                 };
                 rows.push(own(Input::Qdd(j), 1.0));
                 rows.push(own(Input::Qd(j), 1.0));
                 rows.push(own(Input::Sign(j), 1.0));
-                rows.push(if i == j { self.constant(1.0) } else { Poly::default() });
+                rows.push(if i == j {
+                    self.constant(1.0)
+                } else {
+                    Poly::default()
+                });
             }
         }
         rows
@@ -341,14 +381,20 @@ impl Model {
         let mut values = Vec::new();
         let mut names = Vec::new();
         for (i, body) in self.chain.bodies.iter().enumerate() {
-            for (name, value) in INERTIAL_NAMES.iter().zip(body.inertial.standard_parameters()) {
+            for (name, value) in INERTIAL_NAMES
+                .iter()
+                .zip(body.inertial.standard_parameters())
+            {
                 names.push(format!("{name}{}", i + 1));
                 values.push(literal(value));
             }
         }
         for (i, body) in self.chain.bodies.iter().enumerate() {
             let e = body.effects;
-            for (name, value) in EFFECT_NAMES.iter().zip([e.armature, e.viscous, e.coulomb, e.offset]) {
+            for (name, value) in EFFECT_NAMES
+                .iter()
+                .zip([e.armature, e.viscous, e.coulomb, e.offset])
+            {
                 names.push(format!("{name}{}", i + 1));
                 values.push(literal(value));
             }

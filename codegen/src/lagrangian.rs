@@ -42,7 +42,15 @@ pub struct RigidBodyTorque {
 /// exponent vectors use: per joint sin, cos, qd, qdd, sign(qd).
 pub fn inputs(dof: usize) -> Vec<Input> {
     (0..dof)
-        .flat_map(|i| [Input::Sin(i), Input::Cos(i), Input::Qd(i), Input::Qdd(i), Input::Sign(i)])
+        .flat_map(|i| {
+            [
+                Input::Sin(i),
+                Input::Cos(i),
+                Input::Qd(i),
+                Input::Qdd(i),
+                Input::Sign(i),
+            ]
+        })
         .collect()
 }
 
@@ -59,9 +67,13 @@ struct Symbols {
 impl Symbols {
     fn new(dof: usize) -> Symbols {
         let per_joint = |prefix: &str| -> Vec<Symbol> {
-            (1..=dof).map(|i| symbol!(&format!("sdnn_{prefix}{i}"))).collect()
+            (1..=dof)
+                .map(|i| symbol!(&format!("sdnn_{prefix}{i}")))
+                .collect()
         };
-        let names = ["m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz"];
+        let names = [
+            "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
+        ];
         Symbols {
             sin: per_joint("s"),
             cos: per_joint("c"),
@@ -75,8 +87,8 @@ impl Symbols {
 
     /// Polynomial variable order: s, c, qd, qdd per joint, then parameters.
     fn variables(&self) -> Vec<PolyVariable> {
-        let joints = (0..self.sin.len())
-            .flat_map(|i| [self.sin[i], self.cos[i], self.qd[i], self.qdd[i]]);
+        let joints =
+            (0..self.sin.len()).flat_map(|i| [self.sin[i], self.cos[i], self.qd[i], self.qdd[i]]);
         joints
             .chain(self.params.iter().flatten().copied())
             .map(PolyVariable::from)
@@ -204,8 +216,10 @@ fn lagrangian(chain: &Chain, symbols: &Symbols) -> Result<Atom, String> {
             + dot(&v, &cross(&w, &h))
             + &half * dot(&w, &mat_vec(&inertia, &w));
         // U = -g.(m o + W h): the full COM position, not only its height.
-        potential = potential
-            - dot(&gravity, &add(&scale(&world_origin, &m), &mat_vec(&world_rotation, &h)));
+        potential -= dot(
+            &gravity,
+            &add(&scale(&world_origin, &m), &mat_vec(&world_rotation, &h)),
+        );
     }
     Ok((kinetic - potential).expand())
 }
@@ -240,7 +254,9 @@ fn numeric_vector(v: &Vector3<f64>) -> Result<V3, String> {
 }
 
 fn numeric_matrix(m: &Matrix3<f64>) -> Result<M3, String> {
-    let row = |r: usize| -> Result<V3, String> { Ok([exact(m[(r, 0)])?, exact(m[(r, 1)])?, exact(m[(r, 2)])?]) };
+    let row = |r: usize| -> Result<V3, String> {
+        Ok([exact(m[(r, 0)])?, exact(m[(r, 1)])?, exact(m[(r, 2)])?])
+    };
     Ok([row(0)?, row(1)?, row(2)?])
 }
 

@@ -18,8 +18,13 @@ fn main() -> ExitCode {
         .filter(|a| !a.starts_with("--"))
         .map(PathBuf::from)
         .collect();
-    if let Some(bad) = args.iter().find(|a| a.starts_with("--") && *a != "--check" && *a != "--force") {
-        eprintln!("sdnn-codegen: unknown option `{bad}`; usage: sdnn-codegen [--check] [--force] [MODELS_DIR | FILE.toml ...]");
+    if let Some(bad) = args
+        .iter()
+        .find(|a| a.starts_with("--") && *a != "--check" && *a != "--force")
+    {
+        eprintln!(
+            "sdnn-codegen: unknown option `{bad}`; usage: sdnn-codegen [--check] [--force] [MODELS_DIR | FILE.toml ...]"
+        );
         return ExitCode::from(2);
     }
     let results = match paths.as_slice() {
@@ -28,7 +33,10 @@ fn main() -> ExitCode {
         files => files
             .iter()
             .map(|f| {
-                let dir = f.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+                let dir = f
+                    .parent()
+                    .filter(|p| !p.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."));
                 Config::new(dir).check(check).force(force).run_one(f)
             })
             .collect(),
@@ -46,8 +54,12 @@ fn main() -> ExitCode {
                     );
                     status = ExitCode::from(1);
                 }
-                Outcome::Regenerated { seconds, operations } => {
-                    let ops: Vec<String> = operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
+                Outcome::Regenerated {
+                    seconds,
+                    operations,
+                } => {
+                    let ops: Vec<String> =
+                        operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
                     println!(
                         "regenerated  {} in {seconds:.2} s (operations: {})",
                         report.generated.display(),

@@ -174,19 +174,22 @@ impl Dag {
     }
 
     /// A polynomial by a greedy multivariate Horner scheme: factor out the
-    /// input that occurs in the most terms, recurse on both parts.
-    pub fn horner(&mut self, poly: &Poly) -> NodeId {
-        self.horner_terms(poly.terms().to_vec())
+    /// input of highest `priority` that occurs in the most terms, recurse on
+    /// both parts. Equal priorities everywhere give the plain greedy scheme.
+    pub fn horner(&mut self, poly: &Poly, priority: &[u8]) -> NodeId {
+        self.horner_terms(poly.terms().to_vec(), priority)
     }
 
-    fn horner_terms(&mut self, terms: Vec<(Vec<u32>, f64)>) -> NodeId {
+    fn horner_terms(&mut self, terms: Vec<(Vec<u32>, f64)>, priority: &[u8]) -> NodeId {
         let Some(width) = terms.first().map(|t| t.0.len()) else {
             return self.constant(0.0);
         };
         let counts: Vec<usize> = (0..width)
             .map(|v| terms.iter().filter(|t| t.0[v] > 0).count())
             .collect();
-        let best = (0..width).max_by_key(|&v| (counts[v], std::cmp::Reverse(v)));
+        let best = (0..width)
+            .filter(|&v| counts[v] > 0)
+            .max_by_key(|&v| (priority[v], counts[v], std::cmp::Reverse(v)));
         let Some(v) = best.filter(|&v| counts[v] > 0) else {
             let sum = terms.iter().map(|t| t.1).sum();
             return self.constant(sum);
@@ -199,12 +202,12 @@ impl Dag {
             t.0[v] -= 1;
         }
         let x = self.input(v);
-        let inner = self.horner_terms(with);
+        let inner = self.horner_terms(with, priority);
         let factored = self.mul(vec![x, inner]);
         if without.is_empty() {
             return factored;
         }
-        let rest = self.horner_terms(without);
+        let rest = self.horner_terms(without, priority);
         self.add(vec![factored, rest])
     }
 
@@ -259,7 +262,13 @@ mod tests {
     fn eval_poly(p: &Poly, x: &[f64]) -> f64 {
         p.terms()
             .iter()
-            .map(|(e, c)| c * e.iter().zip(x).map(|(&k, v)| v.powi(k as i32)).product::<f64>())
+            .map(|(e, c)| {
+                c * e
+                    .iter()
+                    .zip(x)
+                    .map(|(&k, v)| v.powi(k as i32))
+                    .product::<f64>()
+            })
             .sum()
     }
 
@@ -273,7 +282,7 @@ mod tests {
             (vec![0, 3, 0], -1.0),
         ]);
         let mut dag = Dag::default();
-        let root = dag.horner(&p);
+        let root = dag.horner(&p, &[0, 0, 0]);
         for x in [[0.3, -1.2, 2.0], [1.5, 0.1, -0.7]] {
             assert!((eval(&dag, root, &x) - eval_poly(&p, &x)).abs() < 1e-12);
         }
@@ -293,7 +302,11 @@ mod tests {
     #[test]
     fn trig_reduction_keeps_value_and_lowers_cosine_degree() {
         // inputs: s = 0, c = 1, x = 2
-        let p = Poly::from_terms([(vec![0, 3, 1], 2.0), (vec![2, 2, 0], 1.0), (vec![0, 2, 0], 1.0)]);
+        let p = Poly::from_terms([
+            (vec![0, 3, 1], 2.0),
+            (vec![2, 2, 0], 1.0),
+            (vec![0, 2, 0], 1.0),
+        ]);
         let r = p.reduce_trig(&[(0, 1)]);
         assert!(r.terms().iter().all(|(e, _)| e[1] <= 1));
         for angle in [0.3_f64, -2.1] {

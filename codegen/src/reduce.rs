@@ -135,11 +135,16 @@ pub(crate) fn reduce(description: &Description) -> Result<Chain, Located> {
         },
     )];
     while let Some((link_name, placement)) = stack.pop() {
-        let link = description.link(&link_name).ok_or_else(|| missing(&link_name))?;
+        let link = description
+            .link(&link_name)
+            .ok_or_else(|| missing(&link_name))?;
         if let (Some(b), Some(inertial)) = (placement.body, link_inertial(link)) {
             parts[b].push(inertial.transformed(&placement.rotation, &placement.translation));
         }
-        for &j in children.get(link_name.as_str()).map_or(&[][..], Vec::as_slice) {
+        for &j in children
+            .get(link_name.as_str())
+            .map_or(&[][..], Vec::as_slice)
+        {
             let joint = &description.joints[j];
             let origin_rotation = placement.rotation * rpy_matrix(&joint.origin.rpy);
             let origin_translation =
@@ -202,7 +207,9 @@ fn is_moving(joint: &Joint) -> bool {
 
 fn link_inertial(link: &crate::description::Link) -> Option<Inertial> {
     let mass = link.mass?;
-    let inertia = link.inertia.unwrap_or(Inertia::from_matrix(&Matrix3::zeros()));
+    let inertia = link
+        .inertia
+        .unwrap_or(Inertia::from_matrix(&Matrix3::zeros()));
     Some(Inertial {
         mass,
         com: Vector3::from(link.com),
@@ -211,7 +218,10 @@ fn link_inertial(link: &crate::description::Link) -> Option<Inertial> {
 }
 
 fn missing(link: &str) -> Located {
-    Located::new(KeyPath::root().key("links"), format!("link `{link}` is not defined"))
+    Located::new(
+        KeyPath::root().key("links"),
+        format!("link `{link}` is not defined"),
+    )
 }
 
 /// Checks that each moving body hangs from the previous one and returns the

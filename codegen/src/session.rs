@@ -22,9 +22,10 @@ pub fn lock_path() -> PathBuf {
 
 /// Runs `work` on the Symbolica thread and returns its result.
 pub fn run<T: Send + 'static>(work: impl FnOnce() -> T + Send + 'static) -> Result<T, String> {
-    let sender = WORKER.get_or_init(|| Mutex::new(spawn_worker())).lock().map_err(|_| {
-        "the Symbolica thread's queue is poisoned by an earlier panic".to_string()
-    })?;
+    let sender = WORKER
+        .get_or_init(|| Mutex::new(spawn_worker()))
+        .lock()
+        .map_err(|_| "the Symbolica thread's queue is poisoned by an earlier panic".to_string())?;
     let (reply, result) = channel();
     let job: Job = Box::new(move || {
         let _ = reply.send(work());
