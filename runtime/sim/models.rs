@@ -1,0 +1,50 @@
+//! Plants from compiled models and from descriptions (numeric oracle).
+
+use nalgebra::{DMatrix, DVector};
+
+use super::plant::Plant;
+use crate::dynamics::Dynamics;
+use crate::oracle::{self, Model};
+
+/// A compiled model as a plant. Wrong slice lengths cannot occur: the
+/// simulator checks every vector against `dof()` before calling.
+pub struct Compiled(pub &'static dyn Dynamics);
+
+impl Plant for Compiled {
+    fn dof(&self) -> usize {
+        self.0.dof()
+    }
+
+    fn mass_matrix(&self, q: &[f64]) -> DMatrix<f64> {
+        self.0
+            .mass_matrix(q)
+            .unwrap_or_else(|_| DMatrix::from_element(self.dof(), self.dof(), f64::NAN))
+    }
+
+    fn bias(&self, q: &[f64], qd: &[f64]) -> DVector<f64> {
+        let n = self.dof();
+        let parts = (
+            self.0.coriolis(q, qd),
+            self.0.gravity(q),
+            self.0.effects(qd),
+        );
+        match parts {
+            (Ok(c), Ok(g), Ok(e)) => c + g + e,
+            _ => DVector::from_element(n, f64::NAN),
+        }
+    }
+}
+
+impl Plant for Model {
+    fn dof(&self) -> usize {
+        Model::dof(self)
+    }
+
+    fn mass_matrix(&self, q: &[f64]) -> DMatrix<f64> {
+        oracle::crba(self, q)
+    }
+
+    fn bias(&self, q: &[f64], qd: &[f64]) -> DVector<f64> {
+        oracle::rnea(self, q, qd, &vec![0.0; Model::dof(self)])
+    }
+}

@@ -1,0 +1,705 @@
+//! Planned joint trajectories with exact derivatives: random minimum-jerk
+//! waypoints (how the thesis data were recorded, §2.1) and a Fourier
+//! excitation (the "fully theoretical trajectory" of thesis §4.3.1).
+
+use nalgebra::DVector;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Peak of the minimum-jerk velocity profile, in units of |dq| / T.
+pub const MIN_JERK_PEAK_VELOCITY: f64 = 1.875;
+/// Peak of the minimum-jerk acceleration profile (10 / sqrt 3), in units of |dq| / T^2.
+pub const MIN_JERK_PEAK_ACCELERATION: f64 = 5.773_502_691_896_258;
+/// Upper bound on segments per joint, so a typo cannot exhaust memory.
+pub const MAX_SEGMENTS: f64 = 1.0e6;
+/// Upper bound on harmonics per joint, for the same reason.
+pub const MAX_HARMONICS: usize = 1000;
+
+/// Errors from invalid reference configurations.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ReferenceError {
+    /// No joints were configured.
+    #[error("joint limits list no joints")]
+    NoJoints,
+    /// Per-joint lists disagree in length.
+    #[error("{what} lists {found} joints, the position limits list {dof}")]
+    LengthMismatch {
+        what: &'static str,
+        dof: usize,
+        found: usize,
+    },
+    /// A joint's usable range [lower + margin, upper - margin] is empty.
+    #[error(
+        "joint {joint} (0-based): range [{lower}, {upper}] minus margin {margin} on each side is empty"
+    )]
+    EmptyRange {
+        joint: usize,
+        lower: f64,
+        upper: f64,
+        margin: f64,
+    },
+    /// A value that must be positive and finite is not.
+    #[error("{what} must be positive and finite, got {value}")]
+    NotPositive { what: &'static str, value: f64 },
+    /// A min/max pair is out of order.
+    #[error("{what}: minimum {min} exceeds maximum {max}")]
+    Order {
+        what: &'static str,
+        min: f64,
+        max: f64,
+    },
+    /// The harmonic count is zero or above [`MAX_HARMONICS`].
+    #[error("harmonics must be between 1 and {MAX_HARMONICS}, got {value}")]
+    Harmonics { value: usize },
+    /// The configuration would need too many segments.
+    #[error(
+        "duration {duration} s with segments of {min_segment} s needs more than {MAX_SEGMENTS} segments"
+    )]
+    TooLong { duration: f64, min_segment: f64 },
+}
+
+/// A planned trajectory with exact derivatives.
+pub trait Reference {
+    /// Number of joints.
+    fn dof(&self) -> usize;
+    /// Length of the trajectory in seconds (it starts at t = 0).
+    fn duration(&self) -> f64;
+    /// Planned (q, qd, qdd) at time `t`.
+    fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>);
+}
+
+/// Per-joint limits.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct JointLimits {
+    /// (lower, upper) joint angle in rad.
+    pub position: Vec<(f64, f64)>,
+    /// Maximum |qd| in rad/s.
+    pub velocity: Vec<f64>,
+    /// Maximum |qdd| in rad/s^2.
+    pub acceleration: Vec<f64>,
+}
+
+impl Default for JointLimits {
+    /// Gen3 Lite joints 1-3: range ±2.69 rad (ros2_kortex URDF), MoveIt caps
+    /// 0.5 rad/s and 1.0/0.5/0.4 rad/s^2 (ros_kortex joint_limits.yaml).
+    fn default() -> Self {
+        Self {
+            position: vec![(-2.69, 2.69); 3],
+            velocity: vec![0.5; 3],
+            acceleration: vec![1.0, 0.5, 0.4],
+        }
+    }
+}
+
+impl JointLimits {
+    /// The same limits on `dof` joints.
+    pub fn uniform(dof: usize, position: (f64, f64), velocity: f64, acceleration: f64) -> Self {
+        Self {
+            position: vec![position; dof],
+            velocity: vec![velocity; dof],
+            acceleration: vec![acceleration; dof],
+        }
+    }
+
+    /// Number of joints.
+    pub fn dof(&self) -> usize {
+        self.position.len()
+    }
+
+    /// Checks list lengths, positive caps and non-empty usable ranges.
+    pub fn validate(&self, margin: f64) -> Result<(), ReferenceError> {
+        let dof = self.dof();
+        if dof == 0 {
+            return Err(ReferenceError::NoJoints);
+        }
+        check_len("velocity limits", self.velocity.len(), dof)?;
+        check_len("acceleration limits", self.acceleration.len(), dof)?;
+        check_non_negative("margin", margin)?;
+        for (joint, &(lower, upper)) in self.position.iter().enumerate() {
+            let usable = upper - margin - (lower + margin);
+            if !(lower.is_finite() && upper.is_finite() && usable >= 0.0) {
+                return Err(ReferenceError::EmptyRange {
+                    joint,
+                    lower,
+                    upper,
+                    margin,
+                });
+            }
+        }
+        self.velocity
+            .iter()
+            .try_for_each(|&v| check_positive("velocity limit", v))?;
+        self.acceleration
+            .iter()
+            .try_for_each(|&a| check_positive("acceleration limit", a))
+    }
+}
+
+fn check_len(what: &'static str, found: usize, dof: usize) -> Result<(), ReferenceError> {
+    if found == dof {
+        Ok(())
+    } else {
+        Err(ReferenceError::LengthMismatch { what, dof, found })
+    }
+}
+
+fn check_positive(what: &'static str, value: f64) -> Result<(), ReferenceError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(ReferenceError::NotPositive { what, value })
+    }
+}
+
+fn check_non_negative(what: &'static str, value: f64) -> Result<(), ReferenceError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(ReferenceError::NotPositive { what, value })
+    }
+}
+
+fn check_order(what: &'static str, min: f64, max: f64) -> Result<(), ReferenceError> {
+    if min <= max {
+        Ok(())
+    } else {
+        Err(ReferenceError::Order { what, min, max })
+    }
+}
+
+/// Configuration of a [`WaypointTrajectory`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct WaypointConfig {
+    /// Trajectory length in s (thesis: 20 s).
+    pub duration: f64,
+    /// Joint limits; waypoints stay `margin` inside the position limits.
+    pub limits: JointLimits,
+    /// Distance in rad kept from each position limit.
+    pub margin: f64,
+    /// Shortest drawn segment duration in s.
+    pub min_segment: f64,
+    /// Longest drawn segment duration in s (segments may be lengthened beyond
+    /// it to respect the velocity and acceleration caps).
+    pub max_segment: f64,
+}
+
+impl Default for WaypointConfig {
+    fn default() -> Self {
+        Self {
+            duration: 20.0,
+            limits: JointLimits::default(),
+            margin: 0.1,
+            min_segment: 1.5,
+            max_segment: 4.0,
+        }
+    }
+}
+
+impl WaypointConfig {
+    fn validate(&self) -> Result<(), ReferenceError> {
+        self.limits.validate(self.margin)?;
+        check_positive("duration", self.duration)?;
+        check_positive("min_segment", self.min_segment)?;
+        check_positive("max_segment", self.max_segment)?;
+        check_order("segment duration", self.min_segment, self.max_segment)?;
+        if self.duration / self.min_segment > MAX_SEGMENTS {
+            return Err(ReferenceError::TooLong {
+                duration: self.duration,
+                min_segment: self.min_segment,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// One minimum-jerk move from `q0` to `q0 + dq` over [start, start + length].
+#[derive(Debug, Clone, PartialEq)]
+struct Segment {
+    start: f64,
+    length: f64,
+    q0: f64,
+    dq: f64,
+}
+
+impl Segment {
+    /// Quintic with zero velocity and acceleration at both ends.
+    fn eval(&self, t: f64) -> (f64, f64, f64) {
+        let s = ((t - self.start) / self.length).clamp(0.0, 1.0);
+        let (s2, s3) = (s * s, s * s * s);
+        let pos = s3 * (10.0 - 15.0 * s + 6.0 * s2);
+        let vel = 30.0 * s2 * (1.0 - 2.0 * s + s2);
+        let acc = 60.0 * s * (1.0 - 3.0 * s + 2.0 * s2);
+        let (dq, len) = (self.dq, self.length);
+        (self.q0 + dq * pos, dq * vel / len, dq * acc / (len * len))
+    }
+}
+
+/// Random joint waypoints joined by minimum-jerk segments, drawn
+/// independently per joint as in the thesis experiments (§2.1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaypointTrajectory {
+    duration: f64,
+    joints: Vec<Vec<Segment>>,
+}
+
+impl WaypointTrajectory {
+    /// Draws a trajectory from `seed` (ChaCha8, deterministic).
+    pub fn new(config: &WaypointConfig, seed: u64) -> Result<Self, ReferenceError> {
+        config.validate()?;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let joints = (0..config.limits.dof())
+            .map(|j| joint_segments(config, j, &mut rng))
+            .collect();
+        Ok(Self {
+            duration: config.duration,
+            joints,
+        })
+    }
+}
+
+/// Segments of joint `j` until they cover the duration.
+fn joint_segments(config: &WaypointConfig, j: usize, rng: &mut ChaCha8Rng) -> Vec<Segment> {
+    let (lower, upper) = config.limits.position[j];
+    let (lo, hi) = (lower + config.margin, upper - config.margin);
+    let (vmax, amax) = (config.limits.velocity[j], config.limits.acceleration[j]);
+    let mut q = rng.random_range(lo..=hi);
+    let mut start = 0.0;
+    let mut segments = Vec::new();
+    while start < config.duration {
+        let next = rng.random_range(lo..=hi);
+        let drawn = rng.random_range(config.min_segment..=config.max_segment);
+        let length = capped_length(drawn, (next - q).abs(), vmax, amax);
+        segments.push(Segment {
+            start,
+            length,
+            q0: q,
+            dq: next - q,
+        });
+        start += length;
+        q = next;
+    }
+    segments
+}
+
+/// Lengthens a segment until its minimum-jerk peaks respect the caps.
+fn capped_length(drawn: f64, distance: f64, vmax: f64, amax: f64) -> f64 {
+    let for_velocity = MIN_JERK_PEAK_VELOCITY * distance / vmax;
+    let for_acceleration = (MIN_JERK_PEAK_ACCELERATION * distance / amax).sqrt();
+    drawn.max(for_velocity).max(for_acceleration)
+}
+
+impl Reference for WaypointTrajectory {
+    fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    /// Before t = 0 and after the last segment the joints rest at the first or
+    /// last waypoint. A NaN `t` yields NaN.
+    fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
+        let dof = self.dof();
+        let (mut q, mut qd, mut qdd) = (
+            DVector::zeros(dof),
+            DVector::zeros(dof),
+            DVector::zeros(dof),
+        );
+        for (j, segments) in self.joints.iter().enumerate() {
+            // Last segment starting at or before t (the first one for t < 0).
+            let idx = segments.partition_point(|s| s.start <= t).saturating_sub(1);
+            (q[j], qd[j], qdd[j]) = segments[idx].eval(t);
+        }
+        (q, qd, qdd)
+    }
+}
+
+/// Configuration of an [`ExcitationTrajectory`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ExcitationConfig {
+    /// Trajectory length in s.
+    pub duration: f64,
+    /// Joint limits; the motion stays `margin` inside the position limits.
+    pub limits: JointLimits,
+    /// Distance in rad kept from each position limit.
+    pub margin: f64,
+    /// Harmonics per joint (Swevers et al. use 5).
+    pub harmonics: usize,
+    /// Lowest base frequency in Hz.
+    pub min_base_hz: f64,
+    /// Highest base frequency in Hz.
+    pub max_base_hz: f64,
+}
+
+impl Default for ExcitationConfig {
+    fn default() -> Self {
+        Self {
+            duration: 20.0,
+            limits: JointLimits::default(),
+            margin: 0.1,
+            harmonics: 5,
+            min_base_hz: 0.05,
+            max_base_hz: 0.1,
+        }
+    }
+}
+
+impl ExcitationConfig {
+    fn validate(&self) -> Result<(), ReferenceError> {
+        self.limits.validate(self.margin)?;
+        check_positive("duration", self.duration)?;
+        if self.harmonics == 0 || self.harmonics > MAX_HARMONICS {
+            return Err(ReferenceError::Harmonics {
+                value: self.harmonics,
+            });
+        }
+        check_positive("min_base_hz", self.min_base_hz)?;
+        check_positive("max_base_hz", self.max_base_hz)?;
+        check_order("base frequency", self.min_base_hz, self.max_base_hz)
+    }
+}
+
+/// One joint's finite Fourier series:
+/// q = offset + sum_k a_k/(w k) sin(w k t) - b_k/(w k) cos(w k t).
+#[derive(Debug, Clone, PartialEq)]
+struct FourierJoint {
+    offset: f64,
+    a: Vec<f64>,
+    b: Vec<f64>,
+}
+
+/// Swevers-style periodic excitation: per joint a finite Fourier series with
+/// a common base frequency, scaled to respect position, velocity and
+/// acceleration limits by construction (triangle-inequality bounds).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExcitationTrajectory {
+    duration: f64,
+    /// Base angular frequency in rad/s.
+    omega: f64,
+    joints: Vec<FourierJoint>,
+}
+
+impl ExcitationTrajectory {
+    /// Draws a trajectory from `seed` (ChaCha8, deterministic).
+    pub fn new(config: &ExcitationConfig, seed: u64) -> Result<Self, ReferenceError> {
+        config.validate()?;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let hz = rng.random_range(config.min_base_hz..=config.max_base_hz);
+        let omega = std::f64::consts::TAU * hz;
+        let joints = (0..config.limits.dof())
+            .map(|j| fourier_joint(config, j, omega, &mut rng))
+            .collect();
+        Ok(Self {
+            duration: config.duration,
+            omega,
+            joints,
+        })
+    }
+
+    /// Base frequency in Hz.
+    pub fn base_hz(&self) -> f64 {
+        self.omega / std::f64::consts::TAU
+    }
+}
+
+/// Random coefficients in [-1, 1], scaled so the tightest bound is just met.
+fn fourier_joint(
+    config: &ExcitationConfig,
+    j: usize,
+    omega: f64,
+    rng: &mut ChaCha8Rng,
+) -> FourierJoint {
+    let n = config.harmonics;
+    let a: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..=1.0)).collect();
+    let b: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..=1.0)).collect();
+    let (lower, upper) = config.limits.position[j];
+    let half_range = 0.5 * (upper - lower) - config.margin;
+    let (mut pos, mut vel, mut acc) = (0.0, 0.0, 0.0);
+    for k in 0..n {
+        let wk = omega * (k + 1) as f64;
+        let amplitude = a[k].hypot(b[k]);
+        pos += amplitude / wk;
+        vel += amplitude;
+        acc += amplitude * wk;
+    }
+    let scale = [
+        ratio(half_range, pos),
+        ratio(config.limits.velocity[j], vel),
+        ratio(config.limits.acceleration[j], acc),
+    ]
+    .into_iter()
+    .fold(f64::INFINITY, f64::min);
+    let scale = if scale.is_finite() { scale } else { 0.0 };
+    FourierJoint {
+        offset: 0.5 * (lower + upper),
+        a: a.iter().map(|x| x * scale).collect(),
+        b: b.iter().map(|x| x * scale).collect(),
+    }
+}
+
+fn ratio(limit: f64, bound: f64) -> f64 {
+    if bound > 0.0 {
+        limit / bound
+    } else {
+        f64::INFINITY
+    }
+}
+
+impl FourierJoint {
+    fn eval(&self, omega: f64, t: f64) -> (f64, f64, f64) {
+        let (mut q, mut qd, mut qdd) = (self.offset, 0.0, 0.0);
+        for (k, (a, b)) in self.a.iter().zip(&self.b).enumerate() {
+            let wk = omega * (k + 1) as f64;
+            let (s, c) = (wk * t).sin_cos();
+            q += (a * s - b * c) / wk;
+            qd += a * c + b * s;
+            qdd += wk * (b * c - a * s);
+        }
+        (q, qd, qdd)
+    }
+}
+
+impl Reference for ExcitationTrajectory {
+    fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    /// Defined (periodic) for every finite `t`.
+    fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
+        let dof = self.dof();
+        let (mut q, mut qd, mut qdd) = (
+            DVector::zeros(dof),
+            DVector::zeros(dof),
+            DVector::zeros(dof),
+        );
+        for (j, joint) in self.joints.iter().enumerate() {
+            (q[j], qd[j], qdd[j]) = joint.eval(self.omega, t);
+        }
+        (q, qd, qdd)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Checks limits on a 5 ms grid, with a tolerance for rounding only.
+    fn assert_within_limits(r: &dyn Reference, limits: &JointLimits, margin: f64) {
+        let steps = (r.duration() / 0.005) as usize;
+        for i in 0..=steps {
+            let (q, qd, qdd) = r.sample(i as f64 * 0.005);
+            for j in 0..r.dof() {
+                let (lo, hi) = limits.position[j];
+                assert!(
+                    q[j] >= lo + margin - 1e-12 && q[j] <= hi - margin + 1e-12,
+                    "q{j}={}",
+                    q[j]
+                );
+                assert!(
+                    qd[j].abs() <= limits.velocity[j] * (1.0 + 1e-9),
+                    "qd{j}={}",
+                    qd[j]
+                );
+                assert!(
+                    qdd[j].abs() <= limits.acceleration[j] * (1.0 + 1e-9),
+                    "qdd{j}={}",
+                    qdd[j]
+                );
+            }
+        }
+    }
+
+    /// Central differences of q and qd against the exact qd and qdd.
+    fn assert_exact_derivatives(r: &dyn Reference) {
+        let h = 1e-5;
+        for i in 0..400 {
+            let t = 0.0137 + i as f64 * 0.049;
+            let (_, qd, qdd) = r.sample(t);
+            let (q_p, qd_p, _) = r.sample(t + h);
+            let (q_m, qd_m, _) = r.sample(t - h);
+            let fd_qd = (q_p - q_m) / (2.0 * h);
+            let fd_qdd = (qd_p - qd_m) / (2.0 * h);
+            assert!((fd_qd - qd).amax() < 1e-7, "qd at t={t}");
+            assert!((fd_qdd - qdd).amax() < 1e-7, "qdd at t={t}");
+        }
+    }
+
+    #[test]
+    fn minimum_jerk_peaks_match_constants() {
+        let seg = Segment {
+            start: 0.0,
+            length: 2.0,
+            q0: 0.0,
+            dq: 1.0,
+        };
+        let (_, v, _) = seg.eval(1.0);
+        assert!((v - MIN_JERK_PEAK_VELOCITY / 2.0).abs() < 1e-12);
+        let s_peak = 0.5 - 3f64.sqrt() / 6.0;
+        let (_, _, a) = seg.eval(2.0 * s_peak);
+        assert!((a - MIN_JERK_PEAK_ACCELERATION / 4.0).abs() < 1e-12);
+        assert_eq!(seg.eval(2.0), (1.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn waypoint_derivatives_are_exact() {
+        let r = WaypointTrajectory::new(&WaypointConfig::default(), 3).unwrap();
+        assert_exact_derivatives(&r);
+    }
+
+    #[test]
+    fn excitation_derivatives_are_exact() {
+        let r = ExcitationTrajectory::new(&ExcitationConfig::default(), 3).unwrap();
+        assert_exact_derivatives(&r);
+    }
+
+    #[test]
+    fn same_seed_same_trajectory_other_seed_differs() {
+        let cfg = WaypointConfig::default();
+        let a = WaypointTrajectory::new(&cfg, 11).unwrap();
+        assert_eq!(a, WaypointTrajectory::new(&cfg, 11).unwrap());
+        assert_ne!(a, WaypointTrajectory::new(&cfg, 12).unwrap());
+        let ecfg = ExcitationConfig::default();
+        let e = ExcitationTrajectory::new(&ecfg, 11).unwrap();
+        assert_eq!(e, ExcitationTrajectory::new(&ecfg, 11).unwrap());
+    }
+
+    #[test]
+    fn waypoints_cover_duration_and_rest_afterwards() {
+        let r = WaypointTrajectory::new(&WaypointConfig::default(), 5).unwrap();
+        for segments in &r.joints {
+            let last = segments.last().unwrap();
+            assert!(last.start + last.length >= 20.0);
+            let (q, qd, qdd) = r.sample(1e6);
+            assert!(qd.amax() == 0.0 && qdd.amax() == 0.0 && q.iter().all(|x| x.is_finite()));
+        }
+        let (q0, qd0, _) = r.sample(-1.0);
+        assert_eq!((q0, qd0), {
+            let (q, qd, _) = r.sample(0.0);
+            (q, qd)
+        });
+    }
+
+    #[test]
+    fn velocity_cap_lengthens_segments() {
+        assert_eq!(capped_length(2.0, 0.1, 1.0, 1.0), 2.0);
+        let long = capped_length(1.5, 4.0, 0.5, 10.0);
+        assert!((long - 1.875 * 4.0 / 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn excitation_base_frequency_in_range() {
+        let r = ExcitationTrajectory::new(&ExcitationConfig::default(), 8).unwrap();
+        assert!((0.05..=0.1).contains(&r.base_hz()));
+    }
+
+    #[test]
+    fn invalid_configs_are_errors() {
+        let mut cfg = WaypointConfig::default();
+        cfg.limits.velocity.pop();
+        assert!(matches!(
+            WaypointTrajectory::new(&cfg, 0),
+            Err(ReferenceError::LengthMismatch { .. })
+        ));
+        let cfg = WaypointConfig {
+            margin: 3.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            WaypointTrajectory::new(&cfg, 0),
+            Err(ReferenceError::EmptyRange { joint: 0, .. })
+        ));
+        let cfg = WaypointConfig {
+            min_segment: 5.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            WaypointTrajectory::new(&cfg, 0),
+            Err(ReferenceError::Order { .. })
+        ));
+        let cfg = WaypointConfig {
+            duration: f64::NAN,
+            ..Default::default()
+        };
+        assert!(matches!(
+            WaypointTrajectory::new(&cfg, 0),
+            Err(ReferenceError::NotPositive { .. })
+        ));
+        let cfg = WaypointConfig {
+            duration: 1e12,
+            ..Default::default()
+        };
+        assert!(matches!(
+            WaypointTrajectory::new(&cfg, 0),
+            Err(ReferenceError::TooLong { .. })
+        ));
+        for harmonics in [0, MAX_HARMONICS + 1] {
+            let cfg = ExcitationConfig {
+                harmonics,
+                ..Default::default()
+            };
+            assert!(ExcitationTrajectory::new(&cfg, 0).is_err());
+        }
+        let cfg = ExcitationConfig {
+            limits: JointLimits::uniform(0, (0.0, 1.0), 1.0, 1.0),
+            ..Default::default()
+        };
+        assert_eq!(
+            ExcitationTrajectory::new(&cfg, 0),
+            Err(ReferenceError::NoJoints)
+        );
+    }
+
+    #[test]
+    fn config_round_trips_through_serde_with_defaults() {
+        let cfg: WaypointConfig = serde_json_like_default();
+        assert_eq!(cfg, WaypointConfig::default());
+    }
+
+    /// serde(default) lets an empty map deserialize to the defaults.
+    fn serde_json_like_default() -> WaypointConfig {
+        use serde::de::value::{Error, MapDeserializer};
+        let empty: Vec<(&str, f64)> = Vec::new();
+        WaypointConfig::deserialize(MapDeserializer::<_, Error>::new(empty.into_iter())).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        #[test]
+        fn waypoints_stay_within_limits(seed in any::<u64>()) {
+            let cfg = WaypointConfig::default();
+            let r = WaypointTrajectory::new(&cfg, seed).unwrap();
+            assert_within_limits(&r, &cfg.limits, cfg.margin);
+        }
+
+        #[test]
+        fn excitation_stays_within_limits(seed in any::<u64>()) {
+            let cfg = ExcitationConfig::default();
+            let r = ExcitationTrajectory::new(&cfg, seed).unwrap();
+            assert_within_limits(&r, &cfg.limits, cfg.margin);
+        }
+
+        #[test]
+        fn fast_waypoints_stay_within_limits(seed in any::<u64>()) {
+            let cfg = WaypointConfig {
+                limits: JointLimits::uniform(2, (-1.0, 2.0), 3.0, 8.0),
+                min_segment: 0.3,
+                max_segment: 1.0,
+                ..Default::default()
+            };
+            let r = WaypointTrajectory::new(&cfg, seed).unwrap();
+            assert_within_limits(&r, &cfg.limits, cfg.margin);
+        }
+    }
+}
