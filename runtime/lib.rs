@@ -10,6 +10,7 @@ pub mod dynamics;
 pub mod mlp;
 pub mod oracle;
 pub mod preprocess;
+pub mod report;
 pub mod sim;
 pub mod trajectory;
 
