@@ -72,6 +72,21 @@ pub enum Command {
         #[arg(long, value_enum, default_value_t)]
         format: Format,
     },
+    /// Run the whole SDNN study on the virtual robot: record, preprocess,
+    /// synthesize, train over seeds, compare; writes a results folder.
+    Reproduce(crate::commands::ReproduceArgs),
+    /// Record trajectories on the virtual robot (CSV per trajectory).
+    Simulate(crate::commands::SimulateArgs),
+    /// Preprocess measured CSV files (downsample, filter, differentiate).
+    Preprocess(crate::commands::PreprocessArgs),
+    /// Replace measured torques by a compiled model's (analytical data).
+    Synth(crate::commands::SynthArgs),
+    /// Train an MLP on trajectory CSV files.
+    Train(crate::commands::TrainArgs),
+    /// Evaluate a compiled model or a trained network on measured CSV files.
+    Evaluate(crate::commands::EvaluateArgs),
+    /// Predict torques of a trained network on a state file.
+    Predict(crate::commands::PredictArgs),
 }
 
 /// Parses arguments and runs the command.
@@ -93,6 +108,13 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
             angles,
         } => tau(&model, &input, output.as_deref(), angles),
         Command::Models { format } => models(format),
+        Command::Reproduce(args) => crate::commands::reproduce(&args),
+        Command::Simulate(args) => crate::commands::simulate(&args),
+        Command::Preprocess(args) => crate::commands::preprocess(&args),
+        Command::Synth(args) => crate::commands::synth(&args),
+        Command::Train(args) => crate::commands::train(&args),
+        Command::Evaluate(args) => crate::commands::evaluate(&args),
+        Command::Predict(args) => crate::commands::predict(&args),
     }
 }
 

@@ -26,6 +26,8 @@ pub trait Dynamics: Sync {
     fn dof(&self) -> usize;
     /// Names of the moving joints, base first.
     fn joint_names(&self) -> &'static [&'static str];
+    /// The TOML description the model was generated from.
+    fn description(&self) -> &'static str;
     /// Regressor parameters of the description (see `parameter_names`).
     fn parameters(&self) -> &'static [f64];
     fn parameter_names(&self) -> &'static [&'static str];
@@ -78,6 +80,14 @@ macro_rules! compiled_model {
             }
             fn joint_names(&self) -> &'static [&'static str] {
                 &JOINT_NAMES
+            }
+            fn description(&self) -> &'static str {
+                include_str!(concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/models/",
+                    $name,
+                    ".toml"
+                ))
             }
             fn parameters(&self) -> &'static [f64] {
                 &PARAMETERS
@@ -155,6 +165,18 @@ pub fn model(name: &str) -> Option<&'static dyn Dynamics> {
         .iter()
         .copied()
         .find(|m| m.name() == name)
+}
+
+/// The parsed description of a compiled model (limits, effects, links).
+pub fn parsed_description(
+    model: &dyn Dynamics,
+) -> Result<codegen::Description, codegen::DescriptionError> {
+    let label = format!("models/{}.toml", model.name());
+    codegen::Description::parse(
+        model.description(),
+        model.name(),
+        std::path::Path::new(&label),
+    )
 }
 
 /// Names of every compiled model, sorted.

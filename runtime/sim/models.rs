@@ -8,9 +8,9 @@ use crate::oracle::{self, Model};
 
 /// A compiled model as a plant. Wrong slice lengths cannot occur: the
 /// simulator checks every vector against `dof()` before calling.
-pub struct Compiled(pub &'static dyn Dynamics);
+pub struct Compiled<'a>(pub &'a dyn Dynamics);
 
-impl Plant for Compiled {
+impl Plant for Compiled<'_> {
     fn dof(&self) -> usize {
         self.0.dof()
     }

@@ -1,0 +1,715 @@
+//! The SDNN study (thesis chapters 2-3) end to end: record trajectories on
+//! the virtual robot, preprocess, synthesize analytical data, train the MLPs
+//! over several seeds and compare every model on held-out trajectories.
+
+use std::path::Path;
+use std::sync::Mutex;
+
+use anyhow::{Context, Result, bail};
+use nalgebra::DMatrix;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use crate::dynamics::{Dynamics, parsed_description};
+use crate::mlp::{Dataset, Mlp};
+use crate::preprocess::Preprocess;
+use crate::sim::models::Compiled;
+use crate::sim::reference::{
+    ExcitationConfig, ExcitationTrajectory, JointLimits, Reference, WaypointConfig,
+    WaypointTrajectory,
+};
+use crate::sim::simulate::{SimConfig, open_loop, simulate};
+use crate::trajectory::{Trajectory, write_csv};
+
+/// Everything the study needs; `Default` is the thesis's setup.
+#[derive(Debug, Clone, Serialize)]
+pub struct StudyConfig {
+    /// Recorded trajectories (thesis: 14) of `duration` s at 1 kHz.
+    pub trajectories: usize,
+    /// How many of them train (thesis: 10); the rest test.
+    pub train: usize,
+    pub duration: f64,
+    /// Seeds per neural network (thesis: 5).
+    pub seeds: usize,
+    /// Master seed: trajectories, split and networks derive from it.
+    pub seed: u64,
+    pub preprocess: Preprocess,
+    pub hidden: Vec<usize>,
+    pub max_epochs: usize,
+    pub patience: usize,
+    pub batch_size: usize,
+    pub learning_rate: f64,
+    /// Analytical-to-measured sample ratios swept for SDNN (1.0 is the thesis's).
+    pub mixing_ratios: Vec<f64>,
+    /// Fully theoretical excitation trajectories for "SDNN (theoretical)".
+    pub theoretical_trajectories: usize,
+    /// Open-loop evaluation window on the first test trajectory, s.
+    pub open_loop_seconds: f64,
+    /// Joint velocity and acceleration caps of the random waypoint trajectories.
+    pub max_velocity: f64,
+    pub max_acceleration: f64,
+}
+
+impl Default for StudyConfig {
+    fn default() -> Self {
+        StudyConfig {
+            trajectories: 14,
+            train: 10,
+            duration: 20.0,
+            seeds: 5,
+            seed: 1,
+            preprocess: Preprocess::default(),
+            hidden: vec![32, 32],
+            max_epochs: 60,
+            patience: 10,
+            batch_size: 128,
+            learning_rate: 3e-3,
+            mixing_ratios: vec![0.5, 2.0],
+            theoretical_trajectories: 10,
+            open_loop_seconds: 1.0,
+            max_velocity: 1.0,
+            max_acceleration: 2.0,
+        }
+    }
+}
+
+/// One model's test error over the seeds (N m^2).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelResult {
+    pub name: String,
+    pub mse_mean: f64,
+    pub mse_std: f64,
+    pub mse_per_joint: Vec<f64>,
+    pub mse_per_joint_std: Vec<f64>,
+    /// Joint-angle RMS error (rad) of open-loop torque replay, seed 0.
+    pub open_loop_rms: Option<f64>,
+    /// Per seed, per joint test MSE.
+    pub mse_per_seed: Vec<Vec<f64>>,
+}
+
+/// The study's outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct StudyResult {
+    pub plant: String,
+    pub nominal: String,
+    pub train_trajectories: Vec<usize>,
+    pub test_trajectories: Vec<usize>,
+    pub models: Vec<ModelResult>,
+    /// Analytical-model test MSE with each filter (the zero-phase comparison).
+    pub filter_comparison: Vec<(String, f64)>,
+    pub config: StudyConfig,
+}
+
+/// How a network's training data is made.
+#[derive(Debug, Clone, PartialEq)]
+enum Recipe {
+    Measured,
+    Analytical,
+    Synthesized { ratio: f64 },
+    Theoretical,
+    Residual,
+}
+
+struct Job {
+    name: String,
+    recipe: Recipe,
+}
+
+/// Progress reporting hook: (done, total, message).
+pub type Progress<'a> = &'a (dyn Fn(usize, usize, &str) + Sync);
+
+/// Recorded, preprocessed and split data.
+struct Data {
+    raw: Vec<Trajectory>,
+    processed: Vec<Trajectory>,
+    references: Vec<Trajectory>,
+    train: Vec<usize>,
+    test: Vec<usize>,
+}
+
+/// Runs the study and writes its results below `out`.
+pub fn run(
+    plant: &'static dyn Dynamics,
+    nominal: &'static dyn Dynamics,
+    config: &StudyConfig,
+    out: &Path,
+    progress: Progress<'_>,
+) -> Result<StudyResult> {
+    check(config, plant, nominal)?;
+    std::fs::create_dir_all(out.join("data"))
+        .with_context(|| format!("creating {}", out.display()))?;
+    let data = record(plant, nominal, config, out, progress)?;
+    let filter_comparison = compare_filters(nominal, &data, config)?;
+    let analytical = analytical_result(nominal, &data)?;
+    let jobs = jobs(config);
+    let networks = train_all(nominal, &data, config, &jobs, out, progress)?;
+    let mut models = vec![analytical];
+    for (job, seeds) in jobs.iter().zip(&networks) {
+        models.push(summarize(
+            &job.name,
+            seeds.iter().map(|(mse, _)| mse.clone()).collect(),
+        ));
+    }
+    open_loop_evaluation(plant, nominal, &data, config, &jobs, &networks, &mut models)?;
+    let result = StudyResult {
+        plant: plant.name().to_string(),
+        nominal: nominal.name().to_string(),
+        train_trajectories: data.train.clone(),
+        test_trajectories: data.test.clone(),
+        models,
+        filter_comparison,
+        config: config.clone(),
+    };
+    let trained: Vec<(String, &Mlp)> = jobs
+        .iter()
+        .zip(&networks)
+        .map(|(j, n)| (j.name.clone(), &n[0].1))
+        .collect();
+    let figures = crate::study_report::Figures {
+        raw: &data.raw,
+        processed: &data.processed,
+        nominal,
+        networks: &trained,
+        residual: "Hybrid (analytical + NN residual)",
+    };
+    crate::study_report::write(&result, &figures, out)?;
+    Ok(result)
+}
+
+fn check(config: &StudyConfig, plant: &dyn Dynamics, nominal: &dyn Dynamics) -> Result<()> {
+    if plant.dof() != nominal.dof() {
+        bail!(
+            "plant `{}` has {} joints but nominal model `{}` has {}",
+            plant.name(),
+            plant.dof(),
+            nominal.name(),
+            nominal.dof()
+        );
+    }
+    if config.train == 0 || config.train >= config.trajectories {
+        bail!(
+            "--train must be between 1 and {} (trajectories - 1), got {}",
+            config.trajectories.saturating_sub(1),
+            config.train
+        );
+    }
+    if config.seeds == 0 {
+        bail!("--seeds must be at least 1");
+    }
+    Ok(())
+}
+
+/// Joint limits of the random trajectories: the description's position
+/// limits and the study's velocity and acceleration caps.
+pub fn limits(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
+    let description = parsed_description(nominal)?;
+    let position = description
+        .chain()
+        .bodies
+        .iter()
+        .map(|b| b.limits.map_or((-2.69, 2.69), |l| (l.lower, l.upper)))
+        .collect();
+    let n = nominal.dof();
+    Ok(JointLimits {
+        position,
+        velocity: vec![config.max_velocity; n],
+        acceleration: vec![config.max_acceleration; n],
+    })
+}
+
+/// Records the trajectories (in parallel, two at a time) and preprocesses them.
+fn record(
+    plant: &'static dyn Dynamics,
+    nominal: &'static dyn Dynamics,
+    config: &StudyConfig,
+    out: &Path,
+    progress: Progress<'_>,
+) -> Result<Data> {
+    let waypoints = WaypointConfig {
+        duration: config.duration,
+        limits: limits(nominal, config)?,
+        ..WaypointConfig::default()
+    };
+    let recordings = parallel_map(
+        config.trajectories,
+        |k| -> Result<(Trajectory, Trajectory)> {
+            let seed = config.seed.wrapping_mul(1000).wrapping_add(k as u64);
+            let reference = WaypointTrajectory::new(&waypoints, seed)?;
+            let recording = simulate(
+                &Compiled(plant),
+                &Compiled(nominal),
+                &reference,
+                &SimConfig::default(),
+                seed,
+            )?;
+            progress(k + 1, config.trajectories, "recording trajectories");
+            Ok((recording.measured, recording.reference))
+        },
+    )?;
+    let mut raw = Vec::new();
+    let mut references = Vec::new();
+    let mut processed = Vec::new();
+    for (k, (measured, reference)) in recordings.into_iter().enumerate() {
+        write_csv(
+            out.join("data")
+                .join(format!("trajectory_{:02}.csv", k + 1)),
+            &measured,
+        )?;
+        processed.push(config.preprocess.apply(&measured)?);
+        raw.push(measured);
+        references.push(reference);
+    }
+    let mut order: Vec<usize> = (0..config.trajectories).collect();
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(config.seed));
+    let (train, test) = order.split_at(config.train);
+    let (mut train, mut test) = (train.to_vec(), test.to_vec());
+    train.sort_unstable();
+    test.sort_unstable();
+    Ok(Data {
+        raw,
+        processed,
+        references,
+        train,
+        test,
+    })
+}
+
+/// Torques of a compiled model on a trajectory's (q, qd, qdd).
+pub fn model_torques(model: &dyn Dynamics, traj: &Trajectory) -> Result<DMatrix<f64>> {
+    let qdd = traj
+        .qdd()
+        .context("the trajectory has no accelerations; preprocess it first")?;
+    let mut tau = DMatrix::zeros(traj.len(), model.dof());
+    for r in 0..traj.len() {
+        let row = |m: &DMatrix<f64>| m.row(r).iter().copied().collect::<Vec<f64>>();
+        let t = model.tau(&row(traj.q()), &row(traj.qd()), &row(qdd))?;
+        tau.set_row(r, &t.transpose());
+    }
+    Ok(tau)
+}
+
+/// Mean squared error per joint.
+pub fn mse_per_joint(predicted: &DMatrix<f64>, measured: &DMatrix<f64>) -> Vec<f64> {
+    let rows = measured.nrows().max(1) as f64;
+    (0..measured.ncols())
+        .map(|j| (predicted.column(j) - measured.column(j)).norm_squared() / rows)
+        .collect()
+}
+
+fn pooled_mse(pairs: &[(DMatrix<f64>, &Trajectory)]) -> Vec<f64> {
+    let predicted = stack(pairs.iter().map(|(p, _)| p.clone()).collect());
+    let measured = stack(pairs.iter().map(|(_, t)| t.tau().clone()).collect());
+    mse_per_joint(&predicted, &measured)
+}
+
+/// Rows of all blocks, in order.
+pub fn stack(blocks: Vec<DMatrix<f64>>) -> DMatrix<f64> {
+    let rows = blocks.iter().map(|b| b.nrows()).sum();
+    let cols = blocks.first().map_or(0, |b| b.ncols());
+    let mut out = DMatrix::zeros(rows, cols);
+    let mut at = 0;
+    for b in blocks {
+        out.rows_mut(at, b.nrows()).copy_from(&b);
+        at += b.nrows();
+    }
+    out
+}
+
+fn analytical_result(nominal: &dyn Dynamics, data: &Data) -> Result<ModelResult> {
+    let pairs = data
+        .test
+        .iter()
+        .map(|&k| {
+            Ok((
+                model_torques(nominal, &data.processed[k])?,
+                &data.processed[k],
+            ))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(summarize(
+        "Analytical model (Euler-Lagrange)",
+        vec![pooled_mse(&pairs)],
+    ))
+}
+
+/// Analytical-model test MSE with the thesis's moving average and with a
+/// zero-phase Savitzky-Golay filter.
+fn compare_filters(
+    nominal: &dyn Dynamics,
+    data: &Data,
+    config: &StudyConfig,
+) -> Result<Vec<(String, f64)>> {
+    use crate::preprocess::Filter;
+    let filters = [
+        (
+            "moving average, window 40 (thesis)",
+            config.preprocess.clone(),
+        ),
+        (
+            "Savitzky-Golay, window 41, order 3 (zero-phase)",
+            Preprocess {
+                filter: Filter::SavitzkyGolay {
+                    window: 41,
+                    order: 3,
+                },
+                ..config.preprocess.clone()
+            },
+        ),
+    ];
+    filters
+        .into_iter()
+        .map(|(name, filter)| {
+            let pairs = data
+                .test
+                .iter()
+                .map(|&k| {
+                    let t = filter.apply(&data.raw[k])?;
+                    Ok((model_torques(nominal, &t)?, t))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let refs: Vec<(DMatrix<f64>, &Trajectory)> =
+                pairs.iter().map(|(p, t)| (p.clone(), t)).collect();
+            let mse = pooled_mse(&refs);
+            Ok((name.to_string(), mse.iter().sum::<f64>() / mse.len() as f64))
+        })
+        .collect()
+}
+
+fn jobs(config: &StudyConfig) -> Vec<Job> {
+    let mut jobs = vec![
+        Job {
+            name: "NN on measured data".into(),
+            recipe: Recipe::Measured,
+        },
+        Job {
+            name: "NN on analytical data".into(),
+            recipe: Recipe::Analytical,
+        },
+        Job {
+            name: "SDNN (measured + analytical)".into(),
+            recipe: Recipe::Synthesized { ratio: 1.0 },
+        },
+        Job {
+            name: "Hybrid (analytical + NN residual)".into(),
+            recipe: Recipe::Residual,
+        },
+        Job {
+            name: "SDNN (measured + theoretical)".into(),
+            recipe: Recipe::Theoretical,
+        },
+    ];
+    for &ratio in &config.mixing_ratios {
+        jobs.push(Job {
+            name: format!("SDNN, analytical:measured = {ratio}"),
+            recipe: Recipe::Synthesized { ratio },
+        });
+    }
+    jobs
+}
+
+/// Training sets per recipe, built once.
+struct TrainingSets {
+    measured: Dataset,
+    analytical: Dataset,
+    theoretical: Dataset,
+    residual: Dataset,
+}
+
+fn training_sets(
+    nominal: &dyn Dynamics,
+    data: &Data,
+    config: &StudyConfig,
+) -> Result<TrainingSets> {
+    let mut measured = Vec::new();
+    let mut analytical = Vec::new();
+    let mut residual = Vec::new();
+    for &k in &data.train {
+        let traj = &data.processed[k];
+        let model = model_torques(nominal, traj)?;
+        measured.push(Dataset::from_trajectory(traj, k)?);
+        analytical.push(Dataset::from_trajectory(&traj.with_tau(model.clone())?, k)?);
+        residual.push(Dataset::from_trajectory(
+            &traj.with_tau(traj.tau() - model)?,
+            k,
+        )?);
+    }
+    let theoretical = theoretical_data(nominal, config)?;
+    Ok(TrainingSets {
+        measured: Dataset::concat(&measured)?,
+        analytical: Dataset::concat(&analytical)?,
+        theoretical,
+        residual: Dataset::concat(&residual)?,
+    })
+}
+
+/// Smooth excitation trajectories with exact q, qd, qdd at 100 Hz and the
+/// nominal model's torque (thesis 4.3.1).
+fn theoretical_data(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<Dataset> {
+    let excitation = ExcitationConfig {
+        duration: config.duration,
+        limits: limits(nominal, config)?,
+        ..ExcitationConfig::default()
+    };
+    let dt = 0.01;
+    let samples = (config.duration / dt).round() as usize + 1;
+    let mut parts = Vec::new();
+    for k in 0..config.theoretical_trajectories {
+        let reference =
+            ExcitationTrajectory::new(&excitation, config.seed.wrapping_add(500 + k as u64))?;
+        let n = reference.dof();
+        let (mut q, mut qd, mut qdd) = (
+            DMatrix::zeros(samples, n),
+            DMatrix::zeros(samples, n),
+            DMatrix::zeros(samples, n),
+        );
+        let t: Vec<f64> = (0..samples).map(|i| i as f64 * dt).collect();
+        for (i, &ti) in t.iter().enumerate() {
+            let (a, b, c) = reference.sample(ti);
+            q.set_row(i, &a.transpose());
+            qd.set_row(i, &b.transpose());
+            qdd.set_row(i, &c.transpose());
+        }
+        let zeros = DMatrix::zeros(samples, n);
+        let traj = Trajectory::new(t, q, qd, Some(qdd), zeros)?;
+        let tau = model_torques(nominal, &traj)?;
+        parts.push(Dataset::from_trajectory(&traj.with_tau(tau)?, 10_000 + k)?);
+    }
+    Ok(Dataset::concat(&parts)?)
+}
+
+/// Takes `ratio * len(measured)` analytical rows (cycling if more are needed).
+fn mix(measured: &Dataset, analytical: &Dataset, ratio: f64, seed: u64) -> Result<Dataset> {
+    let wanted = (ratio * measured.len() as f64).round() as usize;
+    let mut rows: Vec<usize> = (0..analytical.len()).collect();
+    rows.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
+    let picked: Vec<usize> = rows.iter().cycle().take(wanted).copied().collect();
+    let pick =
+        |m: &DMatrix<f64>| DMatrix::from_fn(picked.len(), m.ncols(), |r, c| m[(picked[r], c)]);
+    let groups = analytical
+        .groups
+        .as_ref()
+        .map(|g| picked.iter().map(|&r| g[r]).collect());
+    let part = Dataset::new(pick(&analytical.inputs), pick(&analytical.targets), groups)?;
+    Ok(Dataset::concat(&[measured.clone(), part])?)
+}
+
+fn dataset_for(recipe: &Recipe, sets: &TrainingSets, seed: u64) -> Result<Dataset> {
+    Ok(match recipe {
+        Recipe::Measured => sets.measured.clone(),
+        Recipe::Analytical => sets.analytical.clone(),
+        Recipe::Residual => sets.residual.clone(),
+        Recipe::Synthesized { ratio } => mix(&sets.measured, &sets.analytical, *ratio, seed)?,
+        Recipe::Theoretical => Dataset::concat(&[sets.measured.clone(), sets.theoretical.clone()])?,
+    })
+}
+
+/// Per job, per seed: (test MSE per joint, the trained network).
+type Trained = Vec<Vec<(Vec<f64>, Mlp)>>;
+
+fn train_all(
+    nominal: &dyn Dynamics,
+    data: &Data,
+    config: &StudyConfig,
+    jobs: &[Job],
+    out: &Path,
+    progress: Progress<'_>,
+) -> Result<Trained> {
+    let sets = training_sets(nominal, data, config)?;
+    let test: Vec<(&Trajectory, DMatrix<f64>, DMatrix<f64>)> = data
+        .test
+        .iter()
+        .map(|&k| {
+            let traj = &data.processed[k];
+            Ok((
+                traj,
+                Dataset::from_trajectory(traj, k)?.inputs,
+                model_torques(nominal, traj)?,
+            ))
+        })
+        .collect::<Result<_>>()?;
+    let total = jobs.len() * config.seeds;
+    let done = Mutex::new(0usize);
+    let results = parallel_map(total, |i| -> Result<(Vec<f64>, Mlp)> {
+        let (job, seed) = (&jobs[i / config.seeds], (i % config.seeds) as u64);
+        let training = dataset_for(&job.recipe, &sets, config.seed + seed)?;
+        let network = Mlp::params()
+            .hidden(config.hidden.clone())
+            .max_epochs(config.max_epochs)
+            .patience(config.patience)
+            .batch_size(config.batch_size)
+            .learning_rate(config.learning_rate)
+            .seed(config.seed.wrapping_mul(100).wrapping_add(seed))
+            .fit(&training)
+            .with_context(|| format!("training {} (seed {seed})", job.name))?;
+        let pairs = test
+            .iter()
+            .map(|(traj, inputs, analytical)| {
+                let mut predicted = network.predict(inputs)?;
+                if job.recipe == Recipe::Residual {
+                    predicted += analytical;
+                }
+                Ok((predicted, *traj))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mse = pooled_mse(&pairs);
+        let mut count = done
+            .lock()
+            .map_err(|_| anyhow::anyhow!("progress counter poisoned"))?;
+        *count += 1;
+        progress(*count, total, "training networks");
+        Ok((mse, network))
+    })?;
+    let mut by_job: Trained = Vec::new();
+    for (i, result) in results.into_iter().enumerate() {
+        if i % config.seeds == 0 {
+            by_job.push(Vec::new());
+        }
+        by_job.last_mut().expect("pushed above").push(result);
+    }
+    std::fs::create_dir_all(out.join("networks"))?;
+    for (job, seeds) in jobs.iter().zip(&by_job) {
+        let file = out
+            .join("networks")
+            .join(format!("{}.json", slug(&job.name)));
+        seeds[0]
+            .1
+            .save(&file)
+            .with_context(|| format!("saving {}", file.display()))?;
+    }
+    Ok(by_job)
+}
+
+/// A file-name-safe version of a model name.
+pub fn slug(name: &str) -> String {
+    let mut s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    while s.contains("__") {
+        s = s.replace("__", "_");
+    }
+    s.trim_matches('_').to_string()
+}
+
+fn summarize(name: &str, per_seed: Vec<Vec<f64>>) -> ModelResult {
+    let joints = per_seed.first().map_or(0, Vec::len);
+    let means: Vec<f64> = per_seed
+        .iter()
+        .map(|m| m.iter().sum::<f64>() / joints as f64)
+        .collect();
+    let (mse_mean, mse_std) = mean_std(&means);
+    let per_joint: Vec<(f64, f64)> = (0..joints)
+        .map(|j| mean_std(&per_seed.iter().map(|m| m[j]).collect::<Vec<_>>()))
+        .collect();
+    ModelResult {
+        name: name.to_string(),
+        mse_mean,
+        mse_std,
+        mse_per_joint: per_joint.iter().map(|p| p.0).collect(),
+        mse_per_joint_std: per_joint.iter().map(|p| p.1).collect(),
+        open_loop_rms: None,
+        mse_per_seed: per_seed,
+    }
+}
+
+/// Mean and sample standard deviation (0 for one value).
+fn mean_std(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    if values.len() < 2 {
+        return (mean, 0.0);
+    }
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
+}
+
+/// Thesis 4.3.2: replay each model's torques for the planned motion of the
+/// first test trajectory open-loop on the plant; RMS joint-angle error over
+/// the window.
+fn open_loop_evaluation(
+    plant: &dyn Dynamics,
+    nominal: &dyn Dynamics,
+    data: &Data,
+    config: &StudyConfig,
+    jobs: &[Job],
+    networks: &Trained,
+    models: &mut [ModelResult],
+) -> Result<()> {
+    let reference = &data.references[data.test[0]];
+    let dt = reference.t()[1] - reference.t()[0];
+    let steps = ((config.open_loop_seconds / dt).round() as usize).min(reference.len());
+    let window = Trajectory::new(
+        reference.t()[..steps].to_vec(),
+        reference.q().rows(0, steps).into_owned(),
+        reference.qd().rows(0, steps).into_owned(),
+        reference.qdd().map(|a| a.rows(0, steps).into_owned()),
+        reference.tau().rows(0, steps).into_owned(),
+    )?;
+    let inputs = Dataset::from_trajectory(&window, 0)?.inputs;
+    let analytical = model_torques(nominal, &window)?;
+    let replay = |torques: &DMatrix<f64>| -> Result<f64> {
+        let q0: Vec<f64> = window.q().row(0).iter().copied().collect();
+        let qd0: Vec<f64> = window.qd().row(0).iter().copied().collect();
+        let q = open_loop(&Compiled(plant), &q0, &qd0, torques, dt)?;
+        let rows = q.nrows().min(steps);
+        let err = q.rows(0, rows) - window.q().rows(0, rows);
+        Ok((err.norm_squared() / (rows * err.ncols()) as f64).sqrt())
+    };
+    models[0].open_loop_rms = Some(replay(&analytical)?);
+    for (i, (job, seeds)) in jobs.iter().zip(networks).enumerate() {
+        let mut torques = seeds[0].1.predict(&inputs)?;
+        if job.recipe == Recipe::Residual {
+            torques += &analytical;
+        }
+        models[i + 1].open_loop_rms = Some(replay(&torques)?);
+    }
+    Ok(())
+}
+
+/// Maps `f` over 0..n on two threads (this machine's cores), in order.
+fn parallel_map<T: Send>(n: usize, f: impl Fn(usize) -> Result<T> + Sync) -> Result<Vec<T>> {
+    let next = Mutex::new(0usize);
+    let slots: Vec<Mutex<Option<Result<T>>>> = (0..n).map(|_| Mutex::new(None)).collect();
+    let workers = std::thread::available_parallelism()
+        .map_or(2, |p| p.get())
+        .clamp(1, 2);
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| {
+                loop {
+                    let i = {
+                        let Ok(mut guard) = next.lock() else { return };
+                        let i = *guard;
+                        *guard += 1;
+                        i
+                    };
+                    if i >= n {
+                        return;
+                    }
+                    let result = f(i);
+                    if let Ok(mut slot) = slots[i].lock() {
+                        *slot = Some(result);
+                    }
+                }
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .enumerate()
+        .map(|(i, slot)| {
+            slot.into_inner()
+                .ok()
+                .flatten()
+                .unwrap_or_else(|| Err(anyhow::anyhow!("worker for job {i} stopped")))
+        })
+        .collect()
+}

@@ -1,0 +1,244 @@
+//! The study's results folder: comparison table (Markdown, CSV, JSON),
+//! plots (SVG) and the trained networks.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use nalgebra::DMatrix;
+
+use crate::dynamics::Dynamics;
+use crate::mlp::{Dataset, Mlp};
+use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot, line_plot};
+use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv, write_markdown};
+use crate::study::{StudyResult, model_torques, slug};
+use crate::trajectory::Trajectory;
+
+/// What the plots are drawn from.
+pub struct Figures<'a> {
+    pub raw: &'a [Trajectory],
+    pub processed: &'a [Trajectory],
+    pub nominal: &'a dyn Dynamics,
+    /// Seed-0 network of each trained model.
+    pub networks: &'a [(String, &'a Mlp)],
+    /// The model whose network predicts the residual of the analytical model.
+    pub residual: &'a str,
+}
+
+/// The comparison table of a study.
+pub fn comparison(result: &StudyResult) -> Comparison {
+    let rows = result
+        .models
+        .iter()
+        .map(|m| ComparisonRow {
+            name: m.name.clone(),
+            mse_mean: m.mse_mean,
+            mse_std: m.mse_std,
+            mse_per_joint: m.mse_per_joint.clone(),
+            mse_per_joint_std: m.mse_per_joint_std.clone(),
+            extra: vec![(
+                "open-loop q RMS [rad]".into(),
+                m.open_loop_rms.map_or("-".into(), |v| format!("{v:.4}")),
+            )],
+        })
+        .collect();
+    Comparison {
+        title: format!(
+            "Test MSE on {} held-out trajectories, {} seeds per network",
+            result.test_trajectories.len(),
+            result.config.seeds
+        ),
+        unit: "N m^2".into(),
+        rows,
+    }
+}
+
+/// Writes results.{md,csv,json} and the plots below `out`.
+pub fn write(result: &StudyResult, figures: &Figures<'_>, out: &Path) -> Result<()> {
+    let table = comparison(result);
+    write_markdown(out.join("results.md"), &table)?;
+    write_csv(out.join("results.csv"), &table)?;
+    let json = serde_json::to_string_pretty(result)?;
+    std::fs::write(out.join("results.json"), json)
+        .with_context(|| format!("writing {}", out.join("results.json").display()))?;
+    let plots = out.join("plots");
+    std::fs::create_dir_all(&plots)?;
+    filter_plot(figures, &plots)?;
+    torque_plots(result, figures, &plots)?;
+    training_curves(figures, &plots)?;
+    mse_bars(result, &plots)?;
+    Ok(())
+}
+
+/// The table as Markdown, for printing.
+pub fn markdown(result: &StudyResult) -> String {
+    to_markdown(&comparison(result))
+}
+
+fn column(m: &DMatrix<f64>, j: usize) -> Vec<f64> {
+    m.column(j).iter().copied().collect()
+}
+
+fn series(name: &str, x: &[f64], y: Vec<f64>, style: Style) -> Series {
+    Series {
+        name: name.into(),
+        x: x.to_vec(),
+        y,
+        style,
+    }
+}
+
+/// Like thesis Figure 3.1: raw and filtered velocity and acceleration of joint 2.
+fn filter_plot(figures: &Figures<'_>, plots: &Path) -> Result<()> {
+    let (raw, processed) = (&figures.raw[0], &figures.processed[0]);
+    let j = 1.min(raw.dof() - 1);
+    let raw_acc =
+        crate::preprocess::central_difference(&column(raw.qd(), j), raw.t()[1] - raw.t()[0])?;
+    let qdd = processed
+        .qdd()
+        .context("preprocessed trajectory has accelerations")?;
+    let panels = [
+        LinePlot {
+            title: format!("Joint {} velocity", j + 1),
+            x_label: "t [s]".into(),
+            y_label: "qd [rad/s]".into(),
+            series: vec![
+                series(
+                    "recorded (1 kHz)",
+                    raw.t(),
+                    column(raw.qd(), j),
+                    Style::Points,
+                ),
+                series(
+                    "filtered (100 Hz)",
+                    processed.t(),
+                    column(processed.qd(), j),
+                    Style::Line,
+                ),
+            ],
+            log_y: false,
+        },
+        LinePlot {
+            title: format!("Joint {} acceleration", j + 1),
+            x_label: "t [s]".into(),
+            y_label: "qdd [rad/s^2]".into(),
+            series: vec![
+                series(
+                    "difference of recorded velocity",
+                    raw.t(),
+                    raw_acc,
+                    Style::Points,
+                ),
+                series(
+                    "filtered (100 Hz)",
+                    processed.t(),
+                    column(qdd, j),
+                    Style::Line,
+                ),
+            ],
+            log_y: false,
+        },
+    ];
+    grid_plot(
+        plots.join("filtering.svg"),
+        "Raw vs filtered (trajectory 1)",
+        &panels,
+    )?;
+    Ok(())
+}
+
+/// Measured vs predicted torque per joint on the first test trajectory.
+fn torque_plots(result: &StudyResult, figures: &Figures<'_>, plots: &Path) -> Result<()> {
+    let k = result.test_trajectories[0];
+    let traj = &figures.processed[k];
+    let analytical = model_torques(figures.nominal, traj)?;
+    let inputs = Dataset::from_trajectory(traj, k)?.inputs;
+    let mut predictions = vec![("Analytical model".to_string(), analytical.clone())];
+    for (name, network) in figures.networks {
+        let mut p = network.predict(&inputs)?;
+        if name == figures.residual {
+            p += &analytical;
+        }
+        predictions.push((name.clone(), p));
+    }
+    for (name, predicted) in &predictions {
+        let panels: Vec<LinePlot> = (0..traj.dof())
+            .map(|j| LinePlot {
+                title: format!("Joint {}", j + 1),
+                x_label: "t [s]".into(),
+                y_label: "tau [N m]".into(),
+                series: vec![
+                    series("measured", traj.t(), column(traj.tau(), j), Style::Line),
+                    series(name, traj.t(), column(predicted, j), Style::Line),
+                ],
+                log_y: false,
+            })
+            .collect();
+        let title = format!("{name}: test trajectory {}", k + 1);
+        grid_plot(
+            plots.join(format!("torque_{}.svg", slug(name))),
+            &title,
+            &panels,
+        )?;
+    }
+    Ok(())
+}
+
+fn training_curves(figures: &Figures<'_>, plots: &Path) -> Result<()> {
+    let mut curves = Vec::new();
+    for (name, network) in figures.networks {
+        let history = network.history();
+        let epochs: Vec<f64> = (1..=history.train_loss().len()).map(|e| e as f64).collect();
+        curves.push(series(
+            &format!("{name} (train)"),
+            &epochs,
+            history.train_loss().to_vec(),
+            Style::Line,
+        ));
+        if !history.valid_loss().is_empty() {
+            curves.push(series(
+                &format!("{name} (validation)"),
+                &epochs,
+                history.valid_loss().to_vec(),
+                Style::Line,
+            ));
+        }
+    }
+    line_plot(
+        plots.join("training_curves.svg"),
+        &LinePlot {
+            title: "Training curves (seed 0, standardized MSE)".into(),
+            x_label: "epoch".into(),
+            y_label: "loss".into(),
+            series: curves,
+            log_y: true,
+        },
+    )?;
+    Ok(())
+}
+
+fn mse_bars(result: &StudyResult, plots: &Path) -> Result<()> {
+    let joints = result.models.first().map_or(0, |m| m.mse_per_joint.len());
+    let mut groups: Vec<String> = (1..=joints).map(|j| format!("joint {j}")).collect();
+    groups.push("mean".into());
+    let bars = result
+        .models
+        .iter()
+        .map(|m| {
+            let mut values = m.mse_per_joint.clone();
+            values.push(m.mse_mean);
+            let mut errors = m.mse_per_joint_std.clone();
+            errors.push(m.mse_std);
+            (m.name.clone(), values, Some(errors))
+        })
+        .collect();
+    bar_chart(
+        plots.join("mse.svg"),
+        &BarChart {
+            title: "Test MSE (mean ± std over seeds)".into(),
+            y_label: "MSE [N m^2]".into(),
+            groups,
+            bars,
+        },
+    )?;
+    Ok(())
+}
