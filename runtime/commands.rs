@@ -101,8 +101,17 @@ pub struct ReproduceArgs {
     #[arg(long, default_value_t = 20.0)]
     pub duration: f64,
     /// Maximum training epochs per network.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
     pub epochs: usize,
+    /// Early-stopping patience in epochs.
+    #[arg(long, default_value_t = StudyConfig::default().patience)]
+    pub patience: usize,
+    /// Hidden layer widths, comma separated.
+    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden)]
+    pub hidden: Vec<usize>,
+    /// Adam learning rate.
+    #[arg(long, default_value_t = StudyConfig::default().learning_rate)]
+    pub learning_rate: f64,
     /// Plant (truth) and nominal (analytical) compiled models.
     #[arg(long, default_value = DEFAULT_PLANT)]
     pub plant: String,
@@ -121,6 +130,9 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
         train: args.train,
         duration: args.duration,
         max_epochs: args.epochs,
+        patience: args.patience,
+        hidden: args.hidden.clone(),
+        learning_rate: args.learning_rate,
         ..StudyConfig::default()
     };
     let bar = progress_bar();

@@ -4,4 +4,5 @@ mod cli;
 mod descriptions;
 mod dynamics;
 mod freshness;
+mod study;
 mod util;

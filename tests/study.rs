@@ -1,0 +1,201 @@
+//! The SDNN pipeline end to end on a small study, and the stage commands'
+//! contracts.
+
+use sdnn::study::{self, StudyConfig};
+
+use crate::util::{Dir, sdnn};
+
+fn small() -> StudyConfig {
+    StudyConfig {
+        trajectories: 3,
+        train: 2,
+        duration: 4.0,
+        seeds: 2,
+        max_epochs: 5,
+        mixing_ratios: vec![2.0],
+        theoretical_trajectories: 1,
+        open_loop_seconds: 0.5,
+        ..StudyConfig::default()
+    }
+}
+
+fn run(out: &std::path::Path) -> sdnn::study::StudyResult {
+    let plant = sdnn::model("kinova_gen3_lite_3dof_plant").unwrap();
+    let nominal = sdnn::model("kinova_gen3_lite_3dof").unwrap();
+    study::run(plant, nominal, &small(), out, &|_, _, _| {}).unwrap()
+}
+
+#[test]
+fn small_study_writes_results_and_is_deterministic() {
+    let (a, b) = (Dir::new(), Dir::new());
+    let first = run(a.path());
+    for file in [
+        "results.md",
+        "results.csv",
+        "results.json",
+        "plots/mse.svg",
+        "plots/filtering.svg",
+        "plots/training_curves.svg",
+        "data/trajectory_01.csv",
+    ] {
+        assert!(a.path().join(file).exists(), "{file} missing");
+    }
+    assert_eq!(first.test_trajectories.len(), 1);
+    assert_eq!(first.models.len(), 1 + 5 + 1);
+    let analytical = &first.models[0];
+    assert!(analytical.mse_mean > 0.0 && analytical.mse_std == 0.0);
+    for model in &first.models {
+        assert_eq!(model.mse_per_joint.len(), 3);
+        assert!(
+            model.mse_mean.is_finite() && model.open_loop_rms.is_some_and(f64::is_finite),
+            "{}",
+            model.name
+        );
+    }
+    run(b.path());
+    let json = |d: &Dir| std::fs::read_to_string(d.path().join("results.json")).unwrap();
+    assert_eq!(json(&a), json(&b), "same seed, different results");
+}
+
+/// The plant (truth) model explains data recorded on it better than the
+/// nominal model that lacks its friction and armature.
+#[test]
+fn evaluate_prints_the_json_contract_and_ranks_models() {
+    let dir = Dir::new();
+    let out = dir.path().join("rec");
+    let run = sdnn(&[
+        "simulate",
+        "--count",
+        "1",
+        "--duration",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let file = out.join("trajectory_01.csv");
+    let evaluate = |model: &str| -> serde_json::Value {
+        let run = sdnn(&[
+            "evaluate",
+            "--model",
+            model,
+            "--data",
+            file.to_str().unwrap(),
+            "--format",
+            "json",
+        ]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        serde_json::from_slice(&run.stdout).unwrap()
+    };
+    let nominal = evaluate("kinova_gen3_lite_3dof");
+    let truth = evaluate("kinova_gen3_lite_3dof_plant");
+    assert_eq!(nominal["model"], "kinova_gen3_lite_3dof");
+    assert_eq!(nominal["samples"], 401);
+    assert_eq!(nominal["mse"].as_array().unwrap().len(), 3);
+    let mean = |v: &serde_json::Value| v["mse_mean"].as_f64().unwrap();
+    assert!(
+        mean(&truth) < 0.5 * mean(&nominal),
+        "truth {} vs nominal {}",
+        mean(&truth),
+        mean(&nominal)
+    );
+}
+
+#[test]
+fn train_then_predict_round_trip() {
+    let dir = Dir::new();
+    let rec = dir.path().join("rec");
+    assert!(
+        sdnn(&[
+            "simulate",
+            "--count",
+            "2",
+            "--duration",
+            "3",
+            "--out",
+            rec.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let net = dir.path().join("net.json");
+    let files = [rec.join("trajectory_01.csv"), rec.join("trajectory_02.csv")];
+    let run = sdnn(&[
+        "train",
+        files[0].to_str().unwrap(),
+        files[1].to_str().unwrap(),
+        "--out",
+        net.to_str().unwrap(),
+        "--epochs",
+        "3",
+        "--format",
+        "json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let states = dir.write(
+        "s.csv",
+        "q1,q2,q3,qd1,qd2,qd3,qdd1,qdd2,qdd3\n0.1,0.2,0.3,0,0,0,0,0,0\n",
+    );
+    let run = sdnn(&[
+        "predict",
+        "--nn",
+        net.to_str().unwrap(),
+        "--input",
+        states.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stdout = String::from_utf8(run.stdout).unwrap();
+    assert!(
+        stdout.starts_with("tau1,tau2,tau3\n") && stdout.lines().count() == 2,
+        "{stdout}"
+    );
+}
+
+#[test]
+fn jittery_timestamps_need_resample() {
+    let dir = Dir::new();
+    let mut csv = String::from("t,q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n");
+    let mut t = 0.0;
+    for k in 0..600 {
+        t += if k % 3 == 0 { 0.0007 } else { 0.0012 };
+        csv.push_str(&format!("{t},0,0,0,0,0,0,0,0,0\n"));
+    }
+    let file = dir.write("jitter.csv", &csv);
+    let run = sdnn(&["evaluate", "--data", file.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("jitter.csv") && stderr.contains("--resample"),
+        "{stderr}"
+    );
+    let run = sdnn(&[
+        "evaluate",
+        "--data",
+        file.to_str().unwrap(),
+        "--resample",
+        "1000",
+        "--format",
+        "json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
