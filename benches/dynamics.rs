@@ -25,6 +25,17 @@ fn kinova_3dof(c: &mut Criterion) {
     group.bench_function("generated regressor", |b| {
         b.iter(|| kinova::regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
     });
+    group.bench_function("generated sin_cos x2", |b| {
+        b.iter(|| {
+            (
+                kinova::sin_cos(black_box(q[1])),
+                kinova::sin_cos(black_box(q[2])),
+            )
+        })
+    });
+    group.bench_function("std sin_cos x2", |b| {
+        b.iter(|| (black_box(q[1]).sin_cos(), black_box(q[2]).sin_cos()))
+    });
     group.bench_function("oracle rnea", |b| {
         b.iter(|| {
             oracle::rnea(

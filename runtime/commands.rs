@@ -32,6 +32,23 @@ pub struct InputArgs {
     /// Resample jittery timestamps to this uniform rate (Hz) by linear interpolation.
     #[arg(long)]
     pub resample: Option<f64>,
+    /// Map a file column to a contract column, e.g. `--column time=t --column pos1=q1`.
+    #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = parse_mapping)]
+    pub columns: Vec<(String, String)>,
+    /// File columns to ignore (extra columns are an error otherwise).
+    #[arg(long = "ignore-column", value_name = "NAME")]
+    pub ignored: Vec<String>,
+}
+
+fn parse_mapping(text: &str) -> Result<(String, String), String> {
+    match text.split_once('=') {
+        Some((from, to)) if !from.is_empty() && !to.is_empty() => {
+            Ok((from.to_string(), to.to_string()))
+        }
+        _ => Err(format!(
+            "expected FILE_COLUMN=CONTRACT_COLUMN, found `{text}`"
+        )),
+    }
 }
 
 impl InputArgs {
@@ -41,7 +58,8 @@ impl InputArgs {
             dof,
             resample_hz: self.resample,
             min_samples,
-            ..ReadOptions::default()
+            renames: self.columns.iter().cloned().collect(),
+            ignored: self.ignored.clone(),
         }
     }
 }

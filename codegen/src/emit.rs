@@ -147,9 +147,9 @@ impl Function<'_> {
             let has = |input: Input| used.contains(&input);
             let (s, c) = (Input::Sin(i).ident(), Input::Cos(i).ident());
             match (has(Input::Sin(i)), has(Input::Cos(i))) {
-                (true, true) => lines.push(quote! { let (#s, #c) = q[#index].sin_cos(); }),
-                (true, false) => lines.push(quote! { let #s = q[#index].sin(); }),
-                (false, true) => lines.push(quote! { let #c = q[#index].cos(); }),
+                (true, true) => lines.push(quote! { let (#s, #c) = sin_cos(q[#index]); }),
+                (true, false) => lines.push(quote! { let #s = sin_cos(q[#index]).0; }),
+                (false, true) => lines.push(quote! { let #c = sin_cos(q[#index]).1; }),
                 (false, false) => {}
             }
             if has(Input::Qd(i)) {

@@ -1,0 +1,41 @@
+//! MLP training throughput of the study's default network (samples per
+//! second = 20,000 / time per epoch). `cargo bench --bench training`.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use nalgebra::DMatrix;
+use sdnn::mlp::{Dataset, Mlp};
+use sdnn::study::StudyConfig;
+
+fn training(c: &mut Criterion) {
+    let samples = 20_000;
+    let inputs = DMatrix::from_fn(samples, 9, |r, j| {
+        ((r * 7 + j * 13) % 101) as f64 / 50.0 - 1.0
+    });
+    let targets = DMatrix::from_fn(samples, 3, |r, j| {
+        (inputs[(r, j)] * 3.0).sin() + inputs[(r, j + 3)]
+    });
+    let data = Dataset::new(inputs, targets, None).expect("dataset");
+    let defaults = StudyConfig::default();
+    let mut group = c.benchmark_group("mlp");
+    group.throughput(Throughput::Elements(samples as u64));
+    group.sample_size(10);
+    group.bench_function("one epoch, default study network", |b| {
+        b.iter(|| {
+            Mlp::params()
+                .hidden(defaults.hidden.clone())
+                .batch_size(defaults.batch_size)
+                .learning_rate(defaults.learning_rate)
+                .max_epochs(1)
+                .validation_fraction(0.0)
+                .patience(None)
+                .fit(black_box(&data))
+                .expect("training")
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, training);
+criterion_main!(benches);
