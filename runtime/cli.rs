@@ -87,6 +87,9 @@ pub enum Command {
     Evaluate(crate::commands::EvaluateArgs),
     /// Predict torques of a trained network on a state file.
     Predict(crate::commands::PredictArgs),
+    /// Find where a compiled model and measured data disagree and name the
+    /// missing effect (joint friction, offset, armature, payload).
+    Diagnose(crate::commands::DiagnoseArgs),
 }
 
 /// Parses arguments and runs the command.
@@ -115,6 +118,7 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         Command::Train(args) => crate::commands::train(&args),
         Command::Evaluate(args) => crate::commands::evaluate(&args),
         Command::Predict(args) => crate::commands::predict(&args),
+        Command::Diagnose(args) => crate::commands::diagnose(&args),
     }
 }
 

@@ -464,6 +464,65 @@ pub fn predict(args: &PredictArgs) -> Result<()> {
     Ok(())
 }
 
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Compiled model to check.
+    #[arg(long, default_value = DEFAULT_NOMINAL)]
+    pub model: String,
+    /// Raw measured CSV files (at least two: the gap is cross-validated across them).
+    #[arg(long, required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub filter: FilterArgs,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
+    let model = find_model(&args.model)?;
+    let trajectories = args
+        .data
+        .iter()
+        .map(|path| load(path, model.dof(), &args.input, &args.filter, false))
+        .collect::<Result<Vec<_>>>()?;
+    let report =
+        crate::diagnose::diagnose(model, &trajectories, crate::diagnose::Settings::default())?;
+    match args.format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&report)?),
+        Format::Text => {
+            println!("model {}: {} samples", report.model, report.samples);
+            for j in 0..report.mse_before.len() {
+                println!(
+                    "  joint {}: residual RMS {:.4} N m ({:.1}% of torque RMS); held-out MSE {:.5} -> {:.5} N m^2",
+                    j + 1,
+                    report.residual_rms[j],
+                    100.0 * report.residual_share[j],
+                    report.mse_before[j],
+                    report.mse_after[j]
+                );
+            }
+            if report.effects.is_empty() {
+                println!("no significant missing effect found");
+            }
+            for e in &report.effects {
+                let joint = e
+                    .joint
+                    .map_or("last link".to_string(), |j| format!("joint {j}"));
+                println!(
+                    "  missing: {:?} on {joint}: {} (95% CI {}), explains {:.1}% of the residual",
+                    e.kind,
+                    serde_json::Value::Object(e.parameters.clone()),
+                    serde_json::Value::Object(e.ci95.clone()),
+                    100.0 * e.share_explained
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Reads a measured file with the model's joint count and preprocesses it.
 fn load(
     path: &Path,

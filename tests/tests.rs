@@ -2,6 +2,7 @@
 
 mod cli;
 mod descriptions;
+mod diagnose;
 mod dynamics;
 mod freshness;
 mod study;

@@ -1,0 +1,104 @@
+//! The discrepancy workflow on data in which an effect is hidden: the truth
+//! plant has it, the compiled nominal model does not.
+
+use sdnn::diagnose::{Diagnosis, Kind, Settings, diagnose};
+use sdnn::oracle::Model;
+use sdnn::sim::models::Compiled;
+use sdnn::sim::reference::{WaypointConfig, WaypointTrajectory};
+use sdnn::sim::simulate::{SimConfig, simulate};
+use sdnn::study::{self, StudyConfig};
+use sdnn::trajectory::Trajectory;
+
+use crate::util::oracle;
+
+const NOMINAL: &str = "kinova_gen3_lite_3dof";
+
+fn record(truth: &Model, count: u64) -> Vec<Trajectory> {
+    let nominal = sdnn::model(NOMINAL).unwrap();
+    let waypoints = WaypointConfig {
+        limits: study::limits(nominal, &StudyConfig::default()).unwrap(),
+        ..WaypointConfig::default()
+    };
+    let preprocess = StudyConfig::default().preprocess;
+    (0..count)
+        .map(|seed| {
+            let reference = WaypointTrajectory::new(&waypoints, 100 + seed).unwrap();
+            let recording = simulate(
+                truth,
+                &Compiled(nominal),
+                &reference,
+                &SimConfig::default(),
+                100 + seed,
+            )
+            .unwrap();
+            preprocess.apply(&recording.measured).unwrap()
+        })
+        .collect()
+}
+
+fn run(truth: &Model) -> Diagnosis {
+    let nominal = sdnn::model(NOMINAL).unwrap();
+    diagnose(nominal, &record(truth, 6), Settings::default()).unwrap()
+}
+
+#[track_caller]
+fn assert_single(d: &Diagnosis, kind: Kind, joint: Option<usize>, name: &str, truth: f64) {
+    let found: Vec<_> = d.effects.iter().map(|e| (e.kind, e.joint)).collect();
+    let effect = d
+        .effects
+        .iter()
+        .find(|e| e.kind == kind && e.joint == joint)
+        .unwrap_or_else(|| panic!("{kind:?} {joint:?} not named; found {found:?}"));
+    let value = effect.parameters[name].as_f64().unwrap();
+    assert!(
+        (value - truth).abs() <= 0.1 * truth.abs(),
+        "{kind:?}: {value} vs {truth}; found {found:?}"
+    );
+    assert_eq!(
+        d.effects.len(),
+        1,
+        "extra effects named: {}",
+        serde_json::to_string(d).unwrap()
+    );
+    let j = joint.map_or(1, |j| j - 1);
+    assert!(
+        d.mse_after[j] <= 0.2 * d.mse_before[j],
+        "MSE {} -> {}",
+        d.mse_before[j],
+        d.mse_after[j]
+    );
+}
+
+#[test]
+fn viscous_friction_on_one_joint() {
+    let mut truth = oracle(NOMINAL);
+    truth.bodies[1].effects.viscous = 0.8;
+    assert_single(
+        &run(&truth),
+        Kind::ViscousFriction,
+        Some(2),
+        "coefficient",
+        0.8,
+    );
+}
+
+#[test]
+fn coulomb_friction_on_one_joint() {
+    let mut truth = oracle(NOMINAL);
+    truth.bodies[2].effects.coulomb = 0.5;
+    assert_single(&run(&truth), Kind::CoulombFriction, Some(3), "level", 0.5);
+}
+
+#[test]
+fn torque_offset_on_one_joint() {
+    let mut truth = oracle(NOMINAL);
+    truth.bodies[0].effects.offset = 0.3;
+    assert_single(&run(&truth), Kind::TorqueOffset, Some(1), "offset", 0.3);
+}
+
+#[test]
+fn clean_data_names_no_effect() {
+    let d = run(&oracle(NOMINAL));
+    let found: Vec<_> = d.effects.iter().map(|e| (e.kind, e.joint)).collect();
+    assert!(d.effects.is_empty(), "named {found:?} on clean data");
+}
