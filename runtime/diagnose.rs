@@ -102,6 +102,65 @@ struct Stacked {
     dof: usize,
 }
 
+/// Second moments of all candidate columns and the residual, per
+/// trajectory and joint: every least-squares fit and cross-validation fold
+/// is then a small solve, independent of the number of samples.
+struct Moments {
+    /// `[group][joint]`: X^T X, X^T r, r^T r and the row count.
+    xx: Vec<Vec<DMatrix<f64>>>,
+    xr: Vec<Vec<DVector<f64>>>,
+    rr: Vec<Vec<f64>>,
+    rows: Vec<Vec<usize>>,
+}
+
+impl Moments {
+    fn new(data: &Stacked, candidates: &[Candidate]) -> Moments {
+        let columns: Vec<&DVector<f64>> =
+            candidates.iter().flat_map(|c| c.columns.iter()).collect();
+        let p = columns.len();
+        let groups = data.group.iter().max().map_or(0, |g| g + 1);
+        let mut m = Moments {
+            xx: vec![vec![DMatrix::zeros(p, p); data.dof]; groups],
+            xr: vec![vec![DVector::zeros(p); data.dof]; groups],
+            rr: vec![vec![0.0; data.dof]; groups],
+            rows: vec![vec![0; data.dof]; groups],
+        };
+        for r in 0..data.residual.len() {
+            let (g, j, y) = (data.group[r], r % data.dof, data.residual[r]);
+            let x = DVector::from_fn(p, |k, _| columns[k][r]);
+            m.xx[g][j].ger(1.0, &x, &x, 1.0);
+            m.xr[g][j].axpy(y, &x, 1.0);
+            m.rr[g][j] += y * y;
+            m.rows[g][j] += 1;
+        }
+        m
+    }
+
+    /// Sums of X^T X and X^T r over the groups `keep` accepts, restricted to `columns`.
+    fn normal_equations(
+        &self,
+        columns: &[usize],
+        keep: impl Fn(usize) -> bool,
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let k = columns.len();
+        let (mut a, mut b) = (DMatrix::zeros(k, k), DVector::zeros(k));
+        for g in (0..self.xx.len()).filter(|&g| keep(g)) {
+            for j in 0..self.xx[g].len() {
+                a += self.xx[g][j].select_rows(columns).select_columns(columns);
+                b += self.xr[g][j].select_rows(columns);
+            }
+        }
+        (a, b)
+    }
+
+    /// Residual sum of squares of group g, joint j after subtracting X theta.
+    fn sse(&self, g: usize, j: usize, columns: &[usize], theta: &DVector<f64>) -> f64 {
+        let a = self.xx[g][j].select_rows(columns).select_columns(columns);
+        let b = self.xr[g][j].select_rows(columns);
+        self.rr[g][j] - 2.0 * theta.dot(&b) + theta.dot(&(a * theta))
+    }
+}
+
 /// Diagnoses `model` on preprocessed trajectories (with qdd).
 pub fn diagnose(
     model: &dyn Dynamics,
@@ -115,11 +174,11 @@ pub fn diagnose(
         );
     }
     let (data, candidates) = stack(model, trajectories)?;
-    let selected = select(&data, &candidates, settings);
-    let design = columns_of(&candidates, &selected);
-    let mse_before = cv_mse_per_joint(&data, &[]);
-    let mse_after = cv_mse_per_joint(&data, &design);
-    let effects = describe(&data, &candidates, &selected);
+    let moments = Moments::new(&data, &candidates);
+    let selected = select(&moments, data.dof, &candidates, settings);
+    let mse_before = cv_mse_per_joint(&moments, data.dof, &[]);
+    let mse_after = cv_mse_per_joint(&moments, data.dof, &columns_of(&candidates, &selected));
+    let effects = describe(&moments, &candidates, &selected);
     Ok(Diagnosis {
         model: model.name().to_string(),
         samples: data.residual.len() / data.dof,
@@ -232,54 +291,44 @@ fn moving_sign(qd: f64) -> f64 {
     if qd.abs() > MOVING { qd.signum() } else { 0.0 }
 }
 
-fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<DVector<f64>> {
+/// Global column indices of the selected candidates.
+fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<usize> {
+    let offsets: Vec<usize> = candidates
+        .iter()
+        .scan(0, |at, c| {
+            let start = *at;
+            *at += c.columns.len();
+            Some(start)
+        })
+        .collect();
     selected
         .iter()
-        .flat_map(|&c| candidates[c].columns.iter().cloned())
+        .flat_map(|&c| offsets[c]..offsets[c] + candidates[c].columns.len())
         .collect()
 }
 
-/// Least squares; `None` when the columns are (nearly) collinear.
-fn fit(x: &DMatrix<f64>, y: &DVector<f64>) -> Option<DVector<f64>> {
-    let gram = x.transpose() * x;
-    let chol = gram.cholesky()?;
-    Some(chol.solve(&(x.transpose() * y)))
-}
-
-fn design(columns: &[DVector<f64>], rows: &[usize]) -> DMatrix<f64> {
-    DMatrix::from_fn(rows.len(), columns.len(), |r, c| columns[c][rows[r]])
+/// Solves the normal equations; `None` when the columns are (nearly) collinear.
+fn solve(a: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
+    Some(a.cholesky()?.solve(b))
 }
 
 /// Leave-one-trajectory-out MSE per joint of the residual after the effects.
-fn cv_mse_per_joint(data: &Stacked, columns: &[DVector<f64>]) -> Vec<f64> {
-    let groups = data.group.iter().max().map_or(0, |g| g + 1);
-    let mut sse = vec![0.0; data.dof];
-    let mut count = vec![0usize; data.dof];
-    for g in 0..groups {
-        let train: Vec<usize> = (0..data.group.len())
-            .filter(|&r| data.group[r] != g)
-            .collect();
-        let test: Vec<usize> = (0..data.group.len())
-            .filter(|&r| data.group[r] == g)
-            .collect();
+fn cv_mse_per_joint(m: &Moments, dof: usize, columns: &[usize]) -> Vec<f64> {
+    let mut sse = vec![0.0; dof];
+    let mut count = vec![0usize; dof];
+    for g in 0..m.xx.len() {
+        let (a, b) = m.normal_equations(columns, |h| h != g);
         let theta = if columns.is_empty() {
             Some(DVector::zeros(0))
         } else {
-            let y = DVector::from_fn(train.len(), |r, _| data.residual[train[r]]);
-            fit(&design(columns, &train), &y)
+            solve(a, &b)
         };
         let Some(theta) = theta else {
-            return vec![f64::INFINITY; data.dof];
+            return vec![f64::INFINITY; dof];
         };
-        for &r in &test {
-            let predicted: f64 = columns
-                .iter()
-                .zip(theta.iter())
-                .map(|(c, t)| c[r] * t)
-                .sum();
-            let e = data.residual[r] - predicted;
-            sse[r % data.dof] += e * e;
-            count[r % data.dof] += 1;
+        for j in 0..dof {
+            sse[j] += m.sse(g, j, columns, &theta);
+            count[j] += m.rows[g][j];
         }
     }
     sse.iter()
@@ -293,9 +342,9 @@ fn total(v: &[f64]) -> f64 {
 }
 
 /// Forward selection by cross-validated MSE with a significance check.
-fn select(data: &Stacked, candidates: &[Candidate], settings: Settings) -> Vec<usize> {
+fn select(m: &Moments, dof: usize, candidates: &[Candidate], settings: Settings) -> Vec<usize> {
     let mut selected: Vec<usize> = Vec::new();
-    let mut current = total(&cv_mse_per_joint(data, &[]));
+    let mut current = total(&cv_mse_per_joint(m, dof, &[]));
     loop {
         let best = (0..candidates.len())
             .filter(|c| !selected.contains(c))
@@ -304,7 +353,7 @@ fn select(data: &Stacked, candidates: &[Candidate], settings: Settings) -> Vec<u
                 trial.push(c);
                 (
                     c,
-                    total(&cv_mse_per_joint(data, &columns_of(candidates, &trial))),
+                    total(&cv_mse_per_joint(m, dof, &columns_of(candidates, &trial))),
                 )
             })
             .filter(|(_, mse)| mse.is_finite())
@@ -313,7 +362,7 @@ fn select(data: &Stacked, candidates: &[Candidate], settings: Settings) -> Vec<u
         let mut trial = selected.clone();
         trial.push(c);
         if mse > current * (1.0 - settings.min_gain)
-            || !significant(data, candidates, &trial, c, settings.min_t)
+            || !significant(m, candidates, &trial, c, settings.min_t)
         {
             break;
         }
@@ -323,29 +372,33 @@ fn select(data: &Stacked, candidates: &[Candidate], settings: Settings) -> Vec<u
     selected
 }
 
-/// Full-data fit: parameters and their standard errors.
-fn fit_all(data: &Stacked, columns: &[DVector<f64>]) -> Option<(DVector<f64>, DVector<f64>, f64)> {
-    let rows: Vec<usize> = (0..data.residual.len()).collect();
-    let x = design(columns, &rows);
-    let theta = fit(&x, &data.residual)?;
-    let e = &data.residual - &x * &theta;
-    let dof = (rows.len().saturating_sub(columns.len())).max(1) as f64;
-    let sigma2 = e.norm_squared() / dof;
-    let inverse = (x.transpose() * &x).try_inverse()?;
+/// Full-data fit: parameters, their standard errors, and the residual SSE.
+fn fit_all(m: &Moments, columns: &[usize]) -> Option<(DVector<f64>, DVector<f64>, f64)> {
+    let (a, b) = m.normal_equations(columns, |_| true);
+    let theta = solve(a.clone(), &b)?;
+    let groups = 0..m.xx.len();
+    let sse: f64 = groups
+        .clone()
+        .flat_map(|g| (0..m.xx[g].len()).map(move |j| (g, j)))
+        .map(|(g, j)| m.sse(g, j, columns, &theta))
+        .sum();
+    let rows: usize = m.rows.iter().flatten().sum();
+    let sigma2 = sse.max(0.0) / (rows.saturating_sub(columns.len())).max(1) as f64;
+    let inverse = a.try_inverse()?;
     let se = DVector::from_fn(columns.len(), |k, _| {
         (sigma2 * inverse[(k, k)]).max(0.0).sqrt()
     });
-    Some((theta, se, e.norm_squared()))
+    Some((theta, se, sse))
 }
 
 fn significant(
-    data: &Stacked,
+    m: &Moments,
     candidates: &[Candidate],
     trial: &[usize],
     added: usize,
     min_t: f64,
 ) -> bool {
-    let Some((theta, se, _)) = fit_all(data, &columns_of(candidates, trial)) else {
+    let Some((theta, se, _)) = fit_all(m, &columns_of(candidates, trial)) else {
         return false;
     };
     let offset: usize = trial[..trial.len() - 1]
@@ -360,11 +413,11 @@ fn significant(
     (offset..offset + width).all(|k| theta[k].abs() > min_t * se[k])
 }
 
-fn describe(data: &Stacked, candidates: &[Candidate], selected: &[usize]) -> Vec<Effect> {
-    let Some((theta, se, sse_all)) = fit_all(data, &columns_of(candidates, selected)) else {
+fn describe(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<Effect> {
+    let Some((theta, se, sse_all)) = fit_all(m, &columns_of(candidates, selected)) else {
         return Vec::new();
     };
-    let sse_none = data.residual.norm_squared();
+    let sse_none: f64 = m.rr.iter().flatten().sum();
     let mut offset = 0;
     let mut effects = Vec::new();
     for (position, &c) in selected.iter().enumerate() {
@@ -380,8 +433,7 @@ fn describe(data: &Stacked, candidates: &[Candidate], selected: &[usize]) -> Vec
             .filter(|(p, _)| *p != position)
             .map(|(_, &s)| s)
             .collect();
-        let sse_without =
-            fit_all(data, &columns_of(candidates, &without)).map_or(sse_none, |f| f.2);
+        let sse_without = fit_all(m, &columns_of(candidates, &without)).map_or(sse_none, |f| f.2);
         let share = ((sse_without - sse_all) / sse_none).clamp(0.0, 1.0);
         effects.push(effect(candidate, &values, share));
     }
