@@ -478,6 +478,12 @@ pub struct DiagnoseArgs {
     pub filter: FilterArgs,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
+    /// Write the named effects into the model's TOML (a `.bak` copy is kept).
+    #[arg(long)]
+    pub apply: bool,
+    /// The description to update with --apply (default models/MODEL.toml).
+    #[arg(long)]
+    pub toml: Option<PathBuf>,
 }
 
 pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
@@ -519,6 +525,27 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
                 );
             }
         }
+    }
+    if args.apply && !report.effects.is_empty() {
+        let toml = args
+            .toml
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("models/{}.toml", model.name())));
+        let description = crate::dynamics::parsed_description(model)?;
+        let last = description
+            .chain()
+            .bodies
+            .last()
+            .map(|b| b.link.clone())
+            .unwrap_or_default();
+        let backup = crate::apply::apply_to_file(&toml, &report, model.joint_names(), &last)?;
+        eprintln!(
+            "updated {} (backup {}); next: `cargo build --release` regenerates the model, then \
+             `sdnn evaluate --model {} --data ...` shows the new gap",
+            toml.display(),
+            backup.display(),
+            model.name()
+        );
     }
     Ok(())
 }

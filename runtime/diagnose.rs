@@ -125,8 +125,8 @@ impl Moments {
             rr: vec![vec![0.0; data.dof]; groups],
             rows: vec![vec![0; data.dof]; groups],
         };
-        for r in 0..data.residual.len() {
-            let (g, j, y) = (data.group[r], r % data.dof, data.residual[r]);
+        for (r, (&g, &y)) in data.group.iter().zip(data.residual.iter()).enumerate() {
+            let j = r % data.dof;
             let x = DVector::from_fn(p, |k, _| columns[k][r]);
             m.xx[g][j].ger(1.0, &x, &x, 1.0);
             m.xr[g][j].axpy(y, &x, 1.0);

@@ -1,0 +1,253 @@
+//! Writes diagnosed effects into a robot description, keeping the user's
+//! comments and formatting (toml_edit), atomically, with a backup.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use toml_edit::{Array, ArrayOfTables, DocumentMut, InlineTable, Item, Table, Value};
+
+use crate::diagnose::{Diagnosis, Kind};
+
+/// Radius of the sphere whose inertia a payload gets (a point mass would have
+/// none, which the description rejects as not positive definite).
+const PAYLOAD_RADIUS: f64 = 0.02;
+
+/// Adds the effects of `diagnosis` to the description text. Joint effects add
+/// to the joint's existing values (the diagnosis measured what is missing);
+/// a payload becomes a fixed child body of the last moving link.
+pub fn apply_to_text(
+    source: &str,
+    diagnosis: &Diagnosis,
+    joints: &[&str],
+    last_link: &str,
+) -> Result<String> {
+    let mut doc: DocumentMut = source
+        .parse()
+        .context("the description is not valid TOML")?;
+    for effect in &diagnosis.effects {
+        let value = |name: &str| {
+            effect
+                .parameters
+                .get(name)
+                .and_then(serde_json::Value::as_f64)
+        };
+        match (effect.kind, effect.joint) {
+            (Kind::Payload, _) => {
+                let mass = value("mass").context("payload without mass")?;
+                let com: Vec<f64> = effect.parameters["com"]
+                    .as_array()
+                    .map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
+                    .unwrap_or_default();
+                add_payload(&mut doc, mass, &com, last_link)?;
+            }
+            (kind, Some(joint)) => {
+                let (key, parameter) = match kind {
+                    Kind::ViscousFriction => ("viscous", "coefficient"),
+                    Kind::CoulombFriction => ("coulomb", "level"),
+                    Kind::Armature => ("armature", "inertia"),
+                    Kind::TorqueOffset => ("offset", "offset"),
+                    Kind::Payload => unreachable!("handled above"),
+                };
+                let name = joints.get(joint - 1).context("joint index out of range")?;
+                add_joint_effect(
+                    &mut doc,
+                    name,
+                    key,
+                    value(parameter).context("missing parameter")?,
+                )?;
+            }
+            (kind, None) => bail!("{kind:?} has no joint"),
+        }
+    }
+    Ok(doc.to_string())
+}
+
+fn add_joint_effect(doc: &mut DocumentMut, joint: &str, key: &str, delta: f64) -> Result<()> {
+    let joints = doc
+        .get_mut("joints")
+        .and_then(Item::as_array_of_tables_mut)
+        .context("the description has no [[joints]]")?;
+    let table = joints
+        .iter_mut()
+        .find(|t| t.get("name").and_then(Item::as_str) == Some(joint))
+        .with_context(|| format!("no joint named `{joint}` in the description"))?;
+    if !table.contains_key("effects") {
+        table.insert(
+            "effects",
+            Item::Value(Value::InlineTable(InlineTable::new())),
+        );
+    }
+    let effects = table.get_mut("effects").context("effects")?;
+    let current = effects.get(key).and_then(Item::as_float).unwrap_or(0.0);
+    let updated = current + delta;
+    match effects {
+        Item::Value(Value::InlineTable(t)) => {
+            t.insert(key, updated.into());
+        }
+        Item::Table(t) => {
+            t.insert(key, toml_edit::value(updated));
+        }
+        _ => bail!("`effects` of joint `{joint}` is not a table"),
+    }
+    Ok(())
+}
+
+fn add_payload(doc: &mut DocumentMut, mass: f64, com: &[f64], parent: &str) -> Result<()> {
+    if !mass.is_finite() || mass <= 0.0 || com.len() != 3 {
+        bail!("payload needs a positive mass and a 3-vector COM, found {mass} and {com:?}");
+    }
+    let name = unique_link_name(doc, "payload");
+    let moment = 0.4 * mass * PAYLOAD_RADIUS * PAYLOAD_RADIUS;
+    let mut link = Table::new();
+    link.insert("name", toml_edit::value(name.clone()));
+    link.insert("mass", toml_edit::value(mass));
+    link.insert(
+        "com",
+        toml_edit::value(com.iter().copied().collect::<Array>()),
+    );
+    let mut inertia = InlineTable::new();
+    for key in ["ixx", "iyy", "izz"] {
+        inertia.insert(key, moment.into());
+    }
+    link.insert("inertia", toml_edit::value(inertia));
+    push(doc, "links", link)?;
+    let mut joint = Table::new();
+    joint.insert("name", toml_edit::value(format!("{name}_mount")));
+    joint.insert("type", toml_edit::value("fixed"));
+    joint.insert("parent", toml_edit::value(parent));
+    joint.insert("child", toml_edit::value(name));
+    push(doc, "joints", joint)
+}
+
+fn push(doc: &mut DocumentMut, key: &str, table: Table) -> Result<()> {
+    if !doc.contains_key(key) {
+        doc.insert(key, Item::ArrayOfTables(ArrayOfTables::new()));
+    }
+    doc.get_mut(key)
+        .and_then(Item::as_array_of_tables_mut)
+        .with_context(|| format!("`{key}` is not an array of tables"))?
+        .push(table);
+    Ok(())
+}
+
+fn unique_link_name(doc: &DocumentMut, base: &str) -> String {
+    let taken = |name: &str| {
+        doc.get("links")
+            .and_then(Item::as_array_of_tables)
+            .is_some_and(|links| {
+                links
+                    .iter()
+                    .any(|l| l.get("name").and_then(Item::as_str) == Some(name))
+            })
+    };
+    (1..)
+        .map(|k| {
+            if k == 1 {
+                base.to_string()
+            } else {
+                format!("{base}{k}")
+            }
+        })
+        .find(|n| !taken(n))
+        .unwrap_or_else(|| base.to_string())
+}
+
+/// Rewrites `path` with the effects: validates the result as a description,
+/// keeps a `.bak` copy, writes a temporary file and renames it into place.
+pub fn apply_to_file(
+    path: &Path,
+    diagnosis: &Diagnosis,
+    joints: &[&str],
+    last_link: &str,
+) -> Result<PathBuf> {
+    let source = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let updated = apply_to_text(&source, diagnosis, joints, last_link)
+        .with_context(|| path.display().to_string())?;
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("model");
+    codegen::Description::parse(&updated, stem, path)
+        .context("the updated description does not validate")?;
+    let backup = path.with_extension("toml.bak");
+    std::fs::copy(path, &backup)
+        .with_context(|| format!("{}: cannot write backup", backup.display()))?;
+    let temporary = path.with_extension("toml.tmp");
+    std::fs::write(&temporary, updated)
+        .with_context(|| format!("{}: cannot write", temporary.display()))?;
+    std::fs::rename(&temporary, path)
+        .with_context(|| format!("{}: cannot replace", path.display()))?;
+    Ok(backup)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::Effect;
+
+    fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
+        Diagnosis {
+            model: "m".into(),
+            samples: 0,
+            residual_rms: vec![],
+            residual_share: vec![],
+            regimes: vec![],
+            mse_before: vec![],
+            mse_after: vec![],
+            effects,
+        }
+    }
+
+    fn effect(kind: Kind, joint: Option<usize>, params: serde_json::Value) -> Effect {
+        Effect {
+            kind,
+            joint,
+            parameters: params.as_object().cloned().unwrap_or_default(),
+            ci95: Default::default(),
+            share_explained: 0.5,
+        }
+    }
+
+    const SOURCE: &str = "# my arm\n[[links]]\nname = \"base\"\n\n[[links]]\nname = \"a\" # upper arm\nmass = 1.0\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[joints]]\nname = \"j1\"\ntype = \"revolute\"\nparent = \"base\"\nchild = \"a\"\neffects = { viscous = 0.1 }\n";
+
+    #[test]
+    fn joint_effects_add_to_existing_values_and_keep_comments() {
+        let d = diagnosis(vec![
+            effect(
+                Kind::ViscousFriction,
+                Some(1),
+                serde_json::json!({"coefficient": 0.25}),
+            ),
+            effect(
+                Kind::CoulombFriction,
+                Some(1),
+                serde_json::json!({"level": 0.5}),
+            ),
+        ]);
+        let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
+        assert!(
+            out.contains("# my arm") && out.contains("# upper arm"),
+            "{out}"
+        );
+        assert!(
+            out.contains("viscous = 0.35") && out.contains("coulomb = 0.5"),
+            "{out}"
+        );
+        codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+    }
+
+    #[test]
+    fn payload_becomes_a_fixed_child_body() {
+        let d = diagnosis(vec![effect(
+            Kind::Payload,
+            None,
+            serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2]}),
+        )]);
+        let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
+        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+        let body = &parsed.chain().bodies[0];
+        assert!((body.inertial.mass - 1.4).abs() < 1e-12);
+        assert!(
+            out.contains("name = \"payload\"") && out.contains("type = \"fixed\""),
+            "{out}"
+        );
+    }
+}
