@@ -337,33 +337,37 @@ fn cv_mse_per_joint(m: &Moments, dof: usize, columns: &[usize]) -> Vec<f64> {
         .collect()
 }
 
-fn total(v: &[f64]) -> f64 {
-    v.iter().sum()
+/// Largest relative drop of any joint's MSE from `before` to `after`.
+fn relative_gain(before: &[f64], after: &[f64]) -> f64 {
+    before
+        .iter()
+        .zip(after)
+        .map(|(b, a)| if *b > 0.0 { (b - a) / b } else { 0.0 })
+        .fold(f64::NEG_INFINITY, f64::max)
 }
 
-/// Forward selection by cross-validated MSE with a significance check.
+/// Forward selection by cross-validated MSE with a significance check: each
+/// step adds the candidate that lowers some joint's held-out MSE the most
+/// (relative to that joint's current MSE, so a weak joint's effect is not
+/// drowned by a strong joint's torque scale).
 fn select(m: &Moments, dof: usize, candidates: &[Candidate], settings: Settings) -> Vec<usize> {
     let mut selected: Vec<usize> = Vec::new();
-    let mut current = total(&cv_mse_per_joint(m, dof, &[]));
+    let mut current = cv_mse_per_joint(m, dof, &[]);
     loop {
         let best = (0..candidates.len())
             .filter(|c| !selected.contains(c))
             .map(|c| {
                 let mut trial = selected.clone();
                 trial.push(c);
-                (
-                    c,
-                    total(&cv_mse_per_joint(m, dof, &columns_of(candidates, &trial))),
-                )
+                let mse = cv_mse_per_joint(m, dof, &columns_of(candidates, &trial));
+                (c, relative_gain(&current, &mse), mse)
             })
-            .filter(|(_, mse)| mse.is_finite())
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((c, mse)) = best else { break };
+            .filter(|(_, gain, _)| gain.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((c, gain, mse)) = best else { break };
         let mut trial = selected.clone();
         trial.push(c);
-        if mse > current * (1.0 - settings.min_gain)
-            || !significant(m, candidates, &trial, c, settings.min_t)
-        {
+        if gain < settings.min_gain || !significant(m, candidates, &trial, c, settings.min_t) {
             break;
         }
         selected = trial;
