@@ -69,7 +69,7 @@ fn assert_named(d: &Diagnosis, kind: Kind, joint: Option<usize>, name: &str, tru
     );
     let j = joint.map_or(1, |j| j - 1);
     assert!(
-        d.mse_after[j] <= 0.2 * d.mse_before[j],
+        d.mse_after[j] <= (1.0 - cut) * d.mse_before[j],
         "MSE {} -> {}",
         d.mse_before[j],
         d.mse_after[j]
