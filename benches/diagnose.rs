@@ -3,9 +3,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sdnn::diagnose::{Settings, diagnose};
-use sdnn::sim::models::Compiled;
-use sdnn::sim::reference::{WaypointConfig, WaypointTrajectory};
-use sdnn::sim::simulate::{SimConfig, simulate};
+use sdnn::sim::reference::WaypointConfig;
 use sdnn::study::{self, StudyConfig};
 
 fn bench(c: &mut Criterion) {
@@ -18,15 +16,8 @@ fn bench(c: &mut Criterion) {
     };
     let trajectories: Vec<_> = (0..14)
         .map(|seed| {
-            let reference = WaypointTrajectory::new(&waypoints, seed).expect("reference");
-            let recording = simulate(
-                &Compiled(plant),
-                &Compiled(nominal),
-                &reference,
-                &SimConfig::default(),
-                seed,
-            )
-            .expect("simulation");
+            let recording =
+                study::record_trajectory(plant, nominal, &waypoints, seed).expect("simulation");
             config
                 .preprocess
                 .apply(&recording.measured)

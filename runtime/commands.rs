@@ -10,9 +10,6 @@ use nalgebra::DMatrix;
 use crate::cli::{AngleArg, Format, find_model};
 use crate::mlp::{Dataset, Mlp};
 use crate::preprocess::{Filter, Preprocess};
-use crate::sim::models::Compiled;
-use crate::sim::reference::WaypointTrajectory;
-use crate::sim::simulate::{SimConfig, simulate as run_simulation};
 use crate::study::{self, StudyConfig, model_torques, mse_per_joint};
 use crate::trajectory::{
     ReadOptions, Trajectory, read_csv, read_states_csv, write_csv, write_torques, write_torques_csv,
@@ -214,15 +211,8 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     bar.set_length(args.count as u64);
     bar.set_message("recording trajectories");
     for k in 0..args.count {
-        let seed = args.seed.wrapping_mul(1000).wrapping_add(k as u64);
-        let reference = WaypointTrajectory::new(&waypoints, seed)?;
-        let recording = run_simulation(
-            &Compiled(plant),
-            &Compiled(nominal),
-            &reference,
-            &SimConfig::default(),
-            seed,
-        )?;
+        let seed = study::trajectory_seed(args.seed, k);
+        let recording = study::record_trajectory(plant, nominal, &waypoints, seed)?;
         let path = args.out.join(format!("trajectory_{:02}.csv", k + 1));
         write_csv(&path, &recording.measured)?;
         bar.inc(1);

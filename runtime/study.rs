@@ -235,15 +235,8 @@ fn record(
     let recordings = parallel_map(
         config.trajectories,
         |k| -> Result<(Trajectory, Trajectory)> {
-            let seed = config.seed.wrapping_mul(1000).wrapping_add(k as u64);
-            let reference = WaypointTrajectory::new(&waypoints, seed)?;
-            let recording = simulate(
-                &Compiled(plant),
-                &Compiled(nominal),
-                &reference,
-                &SimConfig::default(),
-                seed,
-            )?;
+            let recording =
+                record_trajectory(plant, nominal, &waypoints, trajectory_seed(config.seed, k))?;
             progress(k + 1, config.trajectories, "recording trajectories");
             Ok((recording.measured, recording.reference))
         },
@@ -274,6 +267,28 @@ fn record(
         train,
         test,
     })
+}
+
+/// The seed of trajectory `k` of a recording session.
+pub fn trajectory_seed(seed: u64, k: usize) -> u64 {
+    seed.wrapping_mul(1000).wrapping_add(k as u64)
+}
+
+/// Records one random-waypoint trajectory on the virtual robot.
+pub fn record_trajectory(
+    plant: &dyn Dynamics,
+    nominal: &dyn Dynamics,
+    waypoints: &WaypointConfig,
+    seed: u64,
+) -> Result<crate::sim::simulate::Recording> {
+    let reference = WaypointTrajectory::new(waypoints, seed)?;
+    Ok(simulate(
+        &Compiled(plant),
+        &Compiled(nominal),
+        &reference,
+        &SimConfig::default(),
+        seed,
+    )?)
 }
 
 /// Torques of a compiled model on a trajectory's (q, qd, qdd).
