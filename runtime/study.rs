@@ -2,6 +2,7 @@
 //! the virtual robot, preprocess, synthesize analytical data, train the MLPs
 //! over several seeds and compare every model on held-out trajectories.
 
+use std::f64::consts::PI;
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -202,14 +203,15 @@ fn check(config: &StudyConfig, plant: &dyn Dynamics, nominal: &dyn Dynamics) -> 
 }
 
 /// Joint limits of the random trajectories: the description's position
-/// limits and the study's velocity and acceleration caps.
+/// limits (+-pi for a joint without limits) and the study's velocity and
+/// acceleration caps.
 pub fn limits(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
     let description = parsed_description(nominal)?;
     let position = description
         .chain()
         .bodies
         .iter()
-        .map(|b| b.limits.map_or((-2.69, 2.69), |l| (l.lower, l.upper)))
+        .map(|b| b.limits.map_or((-PI, PI), |l| (l.lower, l.upper)))
         .collect();
     let n = nominal.dof();
     Ok(JointLimits {
