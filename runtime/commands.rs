@@ -299,9 +299,9 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Hidden layer widths, comma separated.
-    #[arg(long, default_value = "32,32", value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden)]
     pub hidden: Vec<usize>,
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
     pub epochs: usize,
     /// The files already carry filtered qd and qdd.
     #[arg(long)]
@@ -326,12 +326,13 @@ pub fn train(args: &TrainArgs) -> Result<()> {
     let bar = progress_bar();
     bar.set_length(args.epochs as u64);
     bar.set_message("training");
+    let defaults = StudyConfig::default();
     let network = Mlp::params()
         .hidden(args.hidden.clone())
         .max_epochs(args.epochs)
-        .patience(10)
-        .batch_size(128)
-        .learning_rate(3e-3)
+        .patience(defaults.patience)
+        .batch_size(defaults.batch_size)
+        .learning_rate(defaults.learning_rate)
         .seed(args.seed)
         .check()?
         .fit_with(&data, None, &mut |epoch| {

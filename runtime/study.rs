@@ -132,8 +132,8 @@ struct Data {
 
 /// Runs the study and writes its results below `out`.
 pub fn run(
-    plant: &'static dyn Dynamics,
-    nominal: &'static dyn Dynamics,
+    plant: &dyn Dynamics,
+    nominal: &dyn Dynamics,
     config: &StudyConfig,
     out: &Path,
     progress: Progress<'_>,
@@ -223,8 +223,8 @@ pub fn limits(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimit
 
 /// Records the trajectories (in parallel, two at a time) and preprocesses them.
 fn record(
-    plant: &'static dyn Dynamics,
-    nominal: &'static dyn Dynamics,
+    plant: &dyn Dynamics,
+    nominal: &dyn Dynamics,
     config: &StudyConfig,
     out: &Path,
     progress: Progress<'_>,
