@@ -23,8 +23,7 @@ fn main() {
                     operations,
                 } = &report.outcome
                 {
-                    let ops: Vec<String> =
-                        operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
+                    let ops: Vec<String> = operations.iter().map(ToString::to_string).collect();
                     println!(
                         "cargo:warning=regenerated {} in {seconds:.1} s (operations: {}); commit it with its TOML",
                         report.generated.display(),

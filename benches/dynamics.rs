@@ -52,5 +52,46 @@ fn kinova_3dof(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, kinova_3dof);
+/// Generated tau against the oracle RNEA for an N-joint model, at a fixed
+/// generic state.
+fn tau_against_rnea<const N: usize>(
+    c: &mut Criterion,
+    name: &str,
+    tau: fn(&[f64; N], &[f64; N], &[f64; N]) -> [f64; N],
+) {
+    let state = |k: f64| std::array::from_fn::<f64, N, _>(|i| (0.37 * (i as f64 + k)).sin());
+    let (q, qd, qdd) = (state(1.0), state(2.0), state(3.0));
+    let model = oracle_model(name);
+    let mut group = c.benchmark_group(name);
+    group.bench_function("generated tau", |b| {
+        b.iter(|| tau(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    group.bench_function("oracle rnea", |b| {
+        b.iter(|| {
+            oracle::rnea(
+                black_box(&model),
+                black_box(&q),
+                black_box(&qd),
+                black_box(&qdd),
+            )
+        })
+    });
+    group.finish();
+}
+
+fn panda(c: &mut Criterion) {
+    tau_against_rnea(c, "panda", sdnn::models::panda::tau);
+    let q = [0.1, 0.2, 0.3, -0.4, 0.5, 0.6, 0.7];
+    c.bench_function("panda/generated gravity", |b| {
+        b.iter(|| sdnn::models::panda::gravity(black_box(&q)))
+    });
+    c.bench_function("panda/generated mass_matrix", |b| {
+        b.iter(|| sdnn::models::panda::mass_matrix(black_box(&q)))
+    });
+    c.bench_function("panda/sin_cos x7", |b| {
+        b.iter(|| q.map(|x| sdnn::models::panda::sin_cos(black_box(x))))
+    });
+}
+
+criterion_group!(benches, kinova_3dof, panda);
 criterion_main!(benches);

@@ -90,6 +90,11 @@ pub enum Command {
     /// Find where a compiled model and measured data disagree and name the
     /// missing effect (joint friction, offset, armature, payload).
     Diagnose(crate::commands::DiagnoseArgs),
+    /// Convert a URDF into a TOML robot description (chain cut, locks, payloads).
+    ImportUrdf(crate::imports::ImportUrdfArgs),
+    /// Convert a log with one text file per channel (line-major, e.g. the
+    /// Franka Panda identification log) into the trajectory CSV contract.
+    ImportLog(crate::imports::ImportLogArgs),
 }
 
 /// Parses arguments and runs the command.
@@ -119,6 +124,8 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         Command::Evaluate(args) => crate::commands::evaluate(&args),
         Command::Predict(args) => crate::commands::predict(&args),
         Command::Diagnose(args) => crate::commands::diagnose(&args),
+        Command::ImportUrdf(args) => crate::imports::import_urdf_command(&args),
+        Command::ImportLog(args) => crate::imports::import_log_command(&args),
     }
 }
 

@@ -1,6 +1,6 @@
 //! The `sdnn` command line: outputs, errors and exit codes.
 
-use crate::util::{Dir, sdnn};
+use crate::util::{Dir, root, sdnn};
 
 #[test]
 fn tau_command_evaluates_the_compiled_model() {
@@ -133,4 +133,72 @@ fn usage_errors_exit_2() {
     let run = sdnn(&["tau", "--model"]);
     assert_eq!(run.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&run.stderr).starts_with("sdnn: "));
+}
+
+/// The committed Gen3 Lite descriptions are what `import-urdf` makes of
+/// Kinova's URDF with the options their headers record.
+#[test]
+fn import_urdf_reproduces_the_committed_gen3_lite_models() {
+    let urdf = root().join("../shared/reference/gen3_lite/GEN3-LITE.urdf");
+    let urdf = urdf.to_str().expect("utf-8 path");
+    let tool = "END_EFFECTOR:mass=0.2018,com=2e-5;0.0024;0.052328,\
+                inertia=0.000308449;0.000211325;0.000187185;-5e-8;-3.5e-8;-2.9196e-5";
+    let cases: [(&str, Vec<&str>); 2] = [
+        (
+            "kinova_gen3_lite",
+            vec!["--name", "Kinova Gen3 Lite (6 DOF, Kinova URDF)"],
+        ),
+        (
+            "kinova_gen3_lite_3dof_locked",
+            vec![
+                "--lock",
+                "J3=0",
+                "--lock",
+                "J4=0",
+                "--lock",
+                "J5=0",
+                "--attach",
+                tool,
+                "--name",
+                "Kinova Gen3 Lite (3 DOF, joints 4-6 locked, thesis tool)",
+            ],
+        ),
+    ];
+    for (model, options) in cases {
+        let mut args = vec!["import-urdf", urdf, "--base", "BASE", "--tip", "DUMMY"];
+        args.extend(options);
+        let output = sdnn(&args);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let imported = String::from_utf8(output.stdout).expect("utf-8 TOML");
+        let path = root().join(format!("models/{model}.toml"));
+        let committed = std::fs::read_to_string(&path).expect("committed model");
+        let parse = |text: &str| codegen::Description::parse(text, model, &path).expect("valid");
+        assert_eq!(parse(&imported), parse(&committed), "{model}");
+    }
+}
+
+#[test]
+fn import_urdf_rejects_a_prismatic_joint_on_the_chain_by_name() {
+    let dir = Dir::new();
+    let urdf = dir.write(
+        "slider.urdf",
+        r#"<robot name="slider">
+             <link name="base"/>
+             <link name="carriage"><inertial><mass value="1"/>
+               <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+             <joint name="rail" type="prismatic"><parent link="base"/><child link="carriage"/>
+               <axis xyz="1 0 0"/><limit lower="0" upper="1" effort="10" velocity="1"/></joint>
+           </robot>"#,
+    );
+    let output = sdnn(&["import-urdf", urdf.to_str().expect("utf-8 path")]);
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("rail") && stderr.contains("prismatic"),
+        "{stderr}"
+    );
 }

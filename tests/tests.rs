@@ -5,5 +5,6 @@ mod descriptions;
 mod diagnose;
 mod dynamics;
 mod freshness;
+mod lumping;
 mod study;
 mod util;

@@ -25,7 +25,7 @@ pub enum Outcome {
     /// The file was (re)generated and written.
     Regenerated {
         seconds: f64,
-        operations: Vec<(String, usize)>,
+        operations: Vec<crate::generate::Cost>,
     },
     /// Check mode: the file is missing or out of date; nothing was written.
     Stale,

@@ -21,6 +21,7 @@ mod generate;
 #[cfg(feature = "symbolic")]
 mod lagrangian;
 pub mod program;
+pub mod recursive;
 #[cfg(feature = "symbolic")]
 pub mod session;
 
@@ -29,7 +30,7 @@ pub use config::{Config, Outcome, Report, registry};
 pub use description::{Description, Inertia, Joint, JointEffects, JointKind, Limits, Link, Origin};
 pub use error::DescriptionError;
 #[cfg(feature = "symbolic")]
-pub use generate::{Generated, generate};
+pub use generate::{Cost, Generated, generate};
 pub use reduce::{Body, Chain, Inertial};
 
 /// The generated file of a model, relative to the models directory.

@@ -58,8 +58,7 @@ fn main() -> ExitCode {
                     seconds,
                     operations,
                 } => {
-                    let ops: Vec<String> =
-                        operations.iter().map(|(f, n)| format!("{f} {n}")).collect();
+                    let ops: Vec<String> = operations.iter().map(ToString::to_string).collect();
                     println!(
                         "regenerated  {} in {seconds:.2} s (operations: {})",
                         report.generated.display(),

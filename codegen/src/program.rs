@@ -173,6 +173,70 @@ impl Dag {
         }
     }
 
+    /// `a + b` without flattening, so a traced recursion keeps its shared
+    /// partial sums; zeros and constant pairs fold.
+    pub fn sum2(&mut self, a: NodeId, b: NodeId) -> NodeId {
+        match (self.constant_value(a), self.constant_value(b)) {
+            (Some(x), Some(y)) => self.constant(x + y),
+            (Some(x), _) if x == 0.0 => b,
+            (_, Some(y)) if y == 0.0 => a,
+            _ => self.intern(Node::Add(vec![a.min(b), a.max(b)])),
+        }
+    }
+
+    /// `a * b` without flattening; zeros, ones and constant pairs fold, a
+    /// constant goes first and negations move outwards (emitted as `-`).
+    pub fn product2(&mut self, a: NodeId, b: NodeId) -> NodeId {
+        match (self.constant_value(a), self.constant_value(b)) {
+            (Some(x), Some(y)) => return self.constant(x * y),
+            (Some(x), _) | (_, Some(x)) if x == 0.0 => return self.constant(0.0),
+            (Some(x), _) if x == 1.0 => return b,
+            (_, Some(y)) if y == 1.0 => return a,
+            (Some(x), _) if x == -1.0 => return self.negate(b),
+            (_, Some(y)) if y == -1.0 => return self.negate(a),
+            _ => {}
+        }
+        if let Node::Neg(x) = self.nodes[a] {
+            let p = self.product2(x, b);
+            return self.negate(p);
+        }
+        if let Node::Neg(y) = self.nodes[b] {
+            let p = self.product2(a, y);
+            return self.negate(p);
+        }
+        let operands = match self.constant_value(b) {
+            Some(_) => vec![b, a],
+            None if self.constant_value(a).is_some() => vec![a, b],
+            None => vec![a.min(b), a.max(b)],
+        };
+        self.intern(Node::Mul(operands))
+    }
+
+    /// `-a`, folding constants and double negations.
+    pub fn negate(&mut self, a: NodeId) -> NodeId {
+        match self.nodes[a] {
+            Node::Const(c) => self.constant(-c),
+            Node::Neg(x) => x,
+            _ => self.intern(Node::Neg(a)),
+        }
+    }
+
+    /// Values of `roots` for input values `x` (tests and checks).
+    pub fn evaluate(&self, roots: &[NodeId], x: &[f64]) -> Vec<f64> {
+        let mut values: Vec<f64> = Vec::with_capacity(self.nodes.len());
+        for node in &self.nodes {
+            let v = match node {
+                Node::Input(i) => x[*i],
+                Node::Const(c) => *c,
+                Node::Add(ops) => ops.iter().map(|&o| values[o]).sum(),
+                Node::Mul(ops) => ops.iter().map(|&o| values[o]).product(),
+                Node::Neg(n) => -values[*n],
+            };
+            values.push(v);
+        }
+        roots.iter().map(|&r| values[r]).collect()
+    }
+
     /// A polynomial by a greedy multivariate Horner scheme: factor out the
     /// input of highest `priority` that occurs in the most terms, recurse on
     /// both parts. Equal priorities everywhere give the plain greedy scheme.

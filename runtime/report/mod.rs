@@ -12,7 +12,7 @@
 //! no font file, fontconfig or system fonts; the viewer picks a `sans-serif`
 //! face when the SVG is displayed.
 
-mod atomic;
+pub(crate) mod atomic;
 pub mod error;
 pub mod plot;
 pub mod table;

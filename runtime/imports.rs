@@ -1,0 +1,122 @@
+//! `sdnn import-urdf` and `sdnn import-log`: other formats into the
+//! project's contracts (TOML descriptions, trajectory CSV).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use crate::import_log::{LineMajorSources, read_line_major, write_contract_csv};
+use crate::import_urdf::{Attachment, ImportOptions, import_urdf, parse_lock};
+use crate::report::atomic::write_atomic;
+
+#[derive(Debug, Args)]
+pub struct ImportUrdfArgs {
+    /// The URDF file.
+    pub urdf: PathBuf,
+    /// The link fixed to the world (default: the URDF root link).
+    #[arg(long)]
+    pub base: Option<String>,
+    /// The last link of the chain (default: the end of the only moving branch).
+    #[arg(long)]
+    pub tip: Option<String>,
+    /// Hold a revolute joint at an angle (rad); it is lumped like a fixed joint.
+    #[arg(long, value_name = "JOINT=ANGLE", value_parser = parse_lock)]
+    pub lock: Vec<(String, f64)>,
+    /// Fix a payload to a link:
+    /// `LINK:mass=KG[,com=X;Y;Z][,inertia=IXX;IYY;IZZ[;IXY;IXZ;IYZ]]` (quote it).
+    #[arg(long, value_name = "LINK:mass=..,com=..")]
+    pub attach: Vec<Attachment>,
+    /// The description's `name` (default: the URDF robot name).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Write the TOML here (atomically) instead of standard output.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
+    let text = std::fs::read_to_string(&args.urdf)
+        .with_context(|| format!("reading {}", args.urdf.display()))?;
+    let options = ImportOptions {
+        base: args.base.clone(),
+        tip: args.tip.clone(),
+        lock: args.lock.clone(),
+        attach: args.attach.clone(),
+        name: args.name.clone(),
+    };
+    let label = args.urdf.display().to_string();
+    let imported =
+        import_urdf(&text, &label, &options).with_context(|| format!("importing {label}"))?;
+    for warning in &imported.warnings {
+        eprintln!("warning: {label}: {warning}");
+    }
+    emit(args.out.as_ref(), imported.toml.as_bytes())?;
+    if let Some(out) = &args.out {
+        eprintln!(
+            "wrote {}; put it in models/ and run `cargo build` to generate its dynamics",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct ImportLogArgs {
+    /// Sample times (s), one per line.
+    #[arg(long)]
+    pub time: PathBuf,
+    /// Joint positions (rad), `dof` lines per sample.
+    #[arg(long)]
+    pub positions: PathBuf,
+    /// Joint velocities (rad/s), `dof` lines per sample.
+    #[arg(long)]
+    pub velocities: PathBuf,
+    /// Joint torques (N m), `dof` lines per sample.
+    #[arg(long)]
+    pub torques: PathBuf,
+    /// Number of joints.
+    #[arg(long)]
+    pub dof: usize,
+    /// Write the CSV here (atomically) instead of standard output.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn import_log_command(args: &ImportLogArgs) -> Result<()> {
+    let columns = read_line_major(&LineMajorSources {
+        time: args.time.clone(),
+        positions: args.positions.clone(),
+        velocities: args.velocities.clone(),
+        torques: args.torques.clone(),
+        dof: args.dof,
+    })?;
+    let mut csv = Vec::new();
+    write_contract_csv(&mut csv, &columns)?;
+    emit(args.out.as_ref(), &csv)?;
+    if let Some(out) = &args.out {
+        eprintln!(
+            "wrote {} ({} samples); timestamps are as logged: pass `--resample HZ` to \
+             commands that read it if they are not uniform",
+            out.display(),
+            columns.t.len()
+        );
+    }
+    Ok(())
+}
+
+/// Writes to `out` atomically, or to standard output.
+fn emit(out: Option<&PathBuf>, bytes: &[u8]) -> Result<()> {
+    match out {
+        Some(path) => write_atomic(path, bytes)?,
+        None => {
+            let mut stdout = std::io::stdout().lock();
+            stdout
+                .write_all(bytes)
+                .context("writing to standard output")?;
+            stdout.flush().context("writing to standard output")?;
+        }
+    }
+    Ok(())
+}
