@@ -242,11 +242,8 @@ impl<'a> Tracer<'a> {
             let p = self.constants(&self.body(i).translation);
             let z = self.constants(&self.body(i).axis);
             // Acceleration of the joint origin, parent axes.
-            let wxp = self.cross(parent.w, p);
-            let centripetal = self.cross(parent.w, wxp);
-            let tangential = self.cross(parent.wd, p);
-            let a = self.add(parent.a, tangential);
-            let a = self.add(a, centripetal);
+            let relative = self.point_acceleration(&parent, p);
+            let a = self.add(parent.a, relative);
             let a = self.inverse_rotate(&rotations[i], a);
             let w_in = self.inverse_rotate(&rotations[i], parent.w);
             let wd_in = self.inverse_rotate(&rotations[i], parent.wd);
@@ -262,16 +259,40 @@ impl<'a> Tracer<'a> {
         motions
     }
 
+    /// wd x r + w x (w x r) = U r, the acceleration of a body point at r
+    /// relative to the origin. U = [wd]x + w w^T - |w|^2 1 is built once per
+    /// body (hash-consed) and serves the wrench and the child's origin.
+    fn point_acceleration(&mut self, motion: &Motion, r: V3) -> V3 {
+        let (w, wd) = (motion.w, motion.wd);
+        let ww = [0, 1, 2].map(|i| [0, 1, 2].map(|j| self.dag.product2(w[i.min(j)], w[i.max(j)])));
+        let u: [V3; 3] = [0, 1, 2].map(|i| {
+            [0, 1, 2].map(|j| {
+                if i == j {
+                    let (k, l) = ((i + 1) % 3, (i + 2) % 3);
+                    let sum = self.dag.sum2(ww[k][k], ww[l][l]);
+                    self.dag.negate(sum)
+                } else {
+                    // [wd]x at (i, j): -wd_k for j = i + 1, +wd_k for j = i + 2.
+                    let k = 3 - i - j;
+                    let spin = if j == (i + 1) % 3 {
+                        self.dag.negate(wd[k])
+                    } else {
+                        wd[k]
+                    };
+                    self.dag.sum2(ww[i][j], spin)
+                }
+            })
+        });
+        self.mat_vec(&u, r)
+    }
+
     /// The wrench (force, moment about the origin) body `i` needs for its
     /// motion: Newton-Euler about a body-fixed point.
     fn wrench(&mut self, i: usize, motion: &Motion) -> (V3, V3) {
         let Inertia { m, h, i: inertia } = self.inertia(i);
         let ma = self.scale(motion.a, m);
-        let wdxh = self.cross(motion.wd, h);
-        let wxh = self.cross(motion.w, h);
-        let wxwxh = self.cross(motion.w, wxh);
-        let force = self.add(ma, wdxh);
-        let force = self.add(force, wxwxh);
+        let uh = self.point_acceleration(motion, h);
+        let force = self.add(ma, uh);
         let iwd = self.mat_vec(&inertia, motion.wd);
         let iw = self.mat_vec(&inertia, motion.w);
         let gyroscopic = self.cross(motion.w, iw);
