@@ -460,7 +460,8 @@ pub struct DiagnoseArgs {
     /// Compiled model to check.
     #[arg(long, default_value = DEFAULT_NOMINAL)]
     pub model: String,
-    /// Raw measured CSV files (at least two: the gap is cross-validated across them).
+    /// Raw measured CSV files (at least two trajectories, or one with
+    /// --segments: the gap is cross-validated across them).
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]
@@ -469,6 +470,10 @@ pub struct DiagnoseArgs {
     pub filter: FilterArgs,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
+    /// Cut each file into this many contiguous pieces after preprocessing, so
+    /// a single long recording can be cross-validated across its pieces.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub segments: u32,
     /// Write the named effects into the model's TOML (a `.bak` copy is kept).
     #[arg(long)]
     pub apply: bool,
@@ -483,9 +488,18 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
         .data
         .iter()
         .map(|path| load(path, model.dof(), &args.input, &args.filter, false))
-        .collect::<Result<Vec<_>>>()?;
-    let report =
-        crate::diagnose::diagnose(model, &trajectories, crate::diagnose::Settings::default())?;
+        .collect::<Result<Vec<_>>>()?
+        .iter()
+        .flat_map(|traj| traj.split(args.segments as usize))
+        .collect::<Vec<_>>();
+    let report = crate::diagnose::diagnose(
+        model,
+        &trajectories,
+        crate::diagnose::Settings {
+            reach: crate::diagnose::reach(model),
+            ..crate::diagnose::Settings::default()
+        },
+    )?;
     match args.format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&report)?),
         Format::Text => {
@@ -507,13 +521,21 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
                 let joint = e
                     .joint
                     .map_or("last link".to_string(), |j| format!("joint {j}"));
+                let whose = if e.joint.is_some() {
+                    "its joint's"
+                } else {
+                    "the"
+                };
                 println!(
-                    "  missing: {:?} on {joint}: {} (95% CI {}), explains {:.1}% of the residual",
+                    "  missing: {:?} on {joint}: {} (95% CI {}), explains {:.1}% of {whose} residual",
                     e.kind,
                     serde_json::Value::Object(e.parameters.clone()),
                     serde_json::Value::Object(e.ci95.clone()),
                     100.0 * e.share_explained
                 );
+            }
+            for note in &report.notes {
+                println!("  note: {note}");
             }
         }
     }

@@ -10,6 +10,10 @@
 //! chosen by forward selection, each step keeping the candidate that lowers
 //! the leave-one-trajectory-out cross-validated MSE most, while it lowers it
 //! by at least `min_gain` and its parameters are significant (|t| > 3).
+//! A fit with a physically impossible sign (negative friction, armature or
+//! payload mass) is never named as that effect: it is reported as a note
+//! (e.g. a negative "armature" means the model's inertia about that joint is
+//! too high) and selection goes on with the other candidates.
 //! Parameters come from least squares with 95% confidence intervals.
 
 use nalgebra::{DMatrix, DVector};
@@ -38,7 +42,8 @@ pub struct Effect {
     pub joint: Option<usize>,
     pub parameters: serde_json::Map<String, serde_json::Value>,
     pub ci95: serde_json::Map<String, serde_json::Value>,
-    /// Fraction of the residual sum of squares this effect removes.
+    /// Fraction of the residual sum of squares this effect removes: of its
+    /// joint's residual for a joint effect, of all joints' for a payload.
     pub share_explained: f64,
 }
 
@@ -57,6 +62,9 @@ pub struct Diagnosis {
     pub mse_before: Vec<f64>,
     pub mse_after: Vec<f64>,
     pub effects: Vec<Effect>,
+    /// Structure the data supports but no physical effect explains, e.g. a
+    /// negative armature (the model's inertia about a joint is too high).
+    pub notes: Vec<String>,
 }
 
 /// Residual structure of one joint.
@@ -75,6 +83,16 @@ pub struct Settings {
     pub min_gain: f64,
     /// Minimum |t| statistic of every parameter of an accepted effect.
     pub min_t: f64,
+    /// The arm's size (m): a payload's centre of mass must lie within it
+    /// (see [`reach`]); infinite accepts any.
+    pub reach: f64,
+}
+
+/// The arm's size: the summed joint offsets of the chain, base to tip.
+pub fn reach(model: &dyn Dynamics) -> f64 {
+    crate::dynamics::parsed_description(model).map_or(f64::INFINITY, |d| {
+        d.chain().bodies.iter().map(|b| b.translation.norm()).sum()
+    })
 }
 
 impl Default for Settings {
@@ -82,6 +100,7 @@ impl Default for Settings {
         Settings {
             min_gain: 0.10,
             min_t: 3.0,
+            reach: f64::INFINITY,
         }
     }
 }
@@ -169,13 +188,14 @@ pub fn diagnose(
 ) -> anyhow::Result<Diagnosis> {
     if trajectories.len() < 2 {
         anyhow::bail!(
-            "diagnosis needs at least 2 trajectories to cross-validate, got {}",
+            "diagnosis needs at least 2 trajectories to cross-validate, got {} (cut one recording into pieces with --segments N)",
             trajectories.len()
         );
     }
+    reject_duplicates(trajectories)?;
     let (data, candidates) = stack(model, trajectories)?;
     let moments = Moments::new(&data, &candidates);
-    let selected = select(&moments, data.dof, &candidates, settings);
+    let (selected, notes) = select(&moments, data.dof, &candidates, settings);
     let mse_before = cv_mse_per_joint(&moments, data.dof, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &columns_of(&candidates, &selected));
     let effects = describe(&moments, &candidates, &selected);
@@ -191,7 +211,25 @@ pub fn diagnose(
         mse_before,
         mse_after,
         effects,
+        notes,
     })
+}
+
+/// The same recording passed twice would leak into its own held-out fold.
+fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<()> {
+    for (a, first) in trajectories.iter().enumerate() {
+        for (b, second) in trajectories.iter().enumerate().skip(a + 1) {
+            if first.t() == second.t() && first.q() == second.q() {
+                anyhow::bail!(
+                    "trajectories {} and {} hold the same samples: pass each recording once \
+                     (use --segments to cross-validate within one recording)",
+                    a + 1,
+                    b + 1
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 fn stack(
@@ -350,12 +388,19 @@ fn relative_gain(before: &[f64], after: &[f64]) -> f64 {
 /// step adds the candidate that lowers some joint's held-out MSE the most
 /// (relative to that joint's current MSE, so a weak joint's effect is not
 /// drowned by a strong joint's torque scale).
-fn select(m: &Moments, dof: usize, candidates: &[Candidate], settings: Settings) -> Vec<usize> {
+fn select(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    settings: Settings,
+) -> (Vec<usize>, Vec<String>) {
     let mut selected: Vec<usize> = Vec::new();
+    let mut refused: Vec<usize> = Vec::new();
+    let mut notes = Vec::new();
     let mut current = cv_mse_per_joint(m, dof, &[]);
     loop {
         let best = (0..candidates.len())
-            .filter(|c| !selected.contains(c))
+            .filter(|c| !selected.contains(c) && !refused.contains(c))
             .map(|c| {
                 let mut trial = selected.clone();
                 trial.push(c);
@@ -367,13 +412,69 @@ fn select(m: &Moments, dof: usize, candidates: &[Candidate], settings: Settings)
         let Some((c, gain, mse)) = best else { break };
         let mut trial = selected.clone();
         trial.push(c);
-        if gain < settings.min_gain || !significant(m, candidates, &trial, c, settings.min_t) {
+        if gain < settings.min_gain {
             break;
+        }
+        let Some(values) = significant(m, candidates, &trial, c, settings.min_t) else {
+            break;
+        };
+        if let Err(note) = physical(&candidates[c], &values, gain, settings.reach) {
+            notes.push(note);
+            refused.push(c);
+            continue;
         }
         selected = trial;
         current = mse;
     }
-    selected
+    (selected, notes)
+}
+
+/// Whether fitted `values` can be the candidate's physical effect; if not,
+/// the note that says what the data show instead.
+fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Result<(), String> {
+    let at = candidate
+        .joint
+        .map_or("the last link".to_string(), |j| format!("joint {}", j + 1));
+    let percent = 100.0 * gain;
+    let value = values[0];
+    let meaning = match candidate.kind {
+        Kind::TorqueOffset => return Ok(()),
+        _ if value <= 0.0 => match candidate.kind {
+            Kind::Armature => {
+                "the model's inertia about this joint is too high (an inertial error, not a rotor)"
+            }
+            Kind::ViscousFriction => {
+                "torque falls with speed: not viscous friction (check the velocity filter, or a Stribeck effect)"
+            }
+            Kind::CoulombFriction => {
+                "the residual opposes friction's direction: check the torque sign convention"
+            }
+            _ => "the last link is lighter than modelled (an inertial error, not a payload)",
+        },
+        Kind::Payload => {
+            let com: Vec<f64> = values[1..].iter().map(|h| h / value).collect();
+            let distance = com.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a first-moment change m*c = [{:.4}, {:.4}, {:.4}] kg m with a mass of \
+                 only {value:.4} kg, i.e. a centre of mass {distance:.2} m away, beyond the arm's reach \
+                 ({reach:.2} m): an inertial error of the last link, not a payload; not named \
+                 (it would cut a joint's held-out MSE by {percent:.0}%)",
+                values[1], values[2], values[3]
+            ));
+        }
+        _ => return Ok(()),
+    };
+    let kind = serde_json::to_value(candidate.kind)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default();
+    Err(format!(
+        "{at}: the data fit {kind} = {value:.4}, a negative value (it would cut a joint's \
+         held-out MSE by {percent:.0}%): {meaning}; not named"
+    ))
 }
 
 /// Full-data fit: parameters, their standard errors, and the residual SSE.
@@ -395,33 +496,38 @@ fn fit_all(m: &Moments, columns: &[usize]) -> Option<(DVector<f64>, DVector<f64>
     Some((theta, se, sse))
 }
 
+/// The fitted parameters of `added` when every parameter that must be is
+/// significant (a payload's mass; its COM components may be zero).
 fn significant(
     m: &Moments,
     candidates: &[Candidate],
     trial: &[usize],
     added: usize,
     min_t: f64,
-) -> bool {
-    let Some((theta, se, _)) = fit_all(m, &columns_of(candidates, trial)) else {
-        return false;
-    };
+) -> Option<Vec<f64>> {
+    let (theta, se, _) = fit_all(m, &columns_of(candidates, trial))?;
     let offset: usize = trial[..trial.len() - 1]
         .iter()
         .map(|&c| candidates[c].columns.len())
         .sum();
     let width = candidates[added].columns.len();
-    if candidates[added].kind == Kind::Payload {
-        // The mass decides; COM components may be zero.
-        return theta[offset].abs() > min_t * se[offset];
-    }
-    (offset..offset + width).all(|k| theta[k].abs() > min_t * se[k])
+    let tested = if candidates[added].kind == Kind::Payload {
+        1
+    } else {
+        width
+    };
+    (offset..offset + tested)
+        .all(|k| theta[k].abs() > min_t * se[k])
+        .then(|| theta.rows(offset, width).iter().copied().collect())
 }
 
 fn describe(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<Effect> {
-    let Some((theta, se, sse_all)) = fit_all(m, &columns_of(candidates, selected)) else {
+    let Some((theta, se, _)) = fit_all(m, &columns_of(candidates, selected)) else {
         return Vec::new();
     };
-    let sse_none: f64 = m.rr.iter().flatten().sum();
+    let all = columns_of(candidates, selected);
+    let sse_none = sse_per_joint(m, &[], &DVector::zeros(0));
+    let sse_with = sse_per_joint(m, &all, &theta);
     let mut offset = 0;
     let mut effects = Vec::new();
     for (position, &c) in selected.iter().enumerate() {
@@ -437,11 +543,29 @@ fn describe(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<Ef
             .filter(|(p, _)| *p != position)
             .map(|(_, &s)| s)
             .collect();
-        let sse_without = fit_all(m, &columns_of(candidates, &without)).map_or(sse_none, |f| f.2);
-        let share = ((sse_without - sse_all) / sse_none).clamp(0.0, 1.0);
+        let rest = columns_of(candidates, &without);
+        let sse_without = fit_all(m, &rest).map_or(sse_none.clone(), |(theta, _, _)| {
+            sse_per_joint(m, &rest, &theta)
+        });
+        let share = match candidate.joint {
+            Some(j) => (sse_without[j] - sse_with[j]) / sse_none[j],
+            None => {
+                let total = |v: &[f64]| v.iter().sum::<f64>();
+                (total(&sse_without) - total(&sse_with)) / total(&sse_none)
+            }
+        };
+        let share = share.clamp(0.0, 1.0);
         effects.push(effect(candidate, &values, share));
     }
     effects
+}
+
+/// Residual SSE per joint over all samples with `columns` fitted as `theta`.
+fn sse_per_joint(m: &Moments, columns: &[usize], theta: &DVector<f64>) -> Vec<f64> {
+    let joints = m.xx.first().map_or(0, Vec::len);
+    (0..joints)
+        .map(|j| (0..m.xx.len()).map(|g| m.sse(g, j, columns, theta)).sum())
+        .collect()
 }
 
 fn effect(candidate: &Candidate, values: &[(f64, f64)], share: f64) -> Effect {
@@ -540,5 +664,42 @@ fn correlation(data: &Stacked, joint: usize, column: &DVector<f64>) -> f64 {
         0.0
     } else {
         cov / (vr * vc).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn candidate(kind: Kind, joint: Option<usize>) -> Candidate {
+        Candidate {
+            kind,
+            joint,
+            names: vec![],
+            columns: vec![],
+        }
+    }
+
+    #[test]
+    fn impossible_signs_become_notes() {
+        let armature = candidate(Kind::Armature, Some(3));
+        let note = physical(&armature, &[-0.1], 0.15, 1.0).unwrap_err();
+        assert!(
+            note.starts_with("joint 4:") && note.contains("inertia"),
+            "{note}"
+        );
+        assert!(physical(&armature, &[0.1], 0.15, 1.0).is_ok());
+        let offset = candidate(Kind::TorqueOffset, Some(0));
+        assert!(physical(&offset, &[-0.3], 0.5, 1.0).is_ok());
+    }
+
+    #[test]
+    fn a_payload_beyond_the_arm_is_a_note() {
+        let payload = candidate(Kind::Payload, None);
+        // 0.5 kg at 0.1 m: a payload.
+        assert!(physical(&payload, &[0.5, 0.0, 0.0, 0.05], 0.3, 1.0).is_ok());
+        // 7 g with m*c of 0.012 kg m: a COM 1.7 m away.
+        let note = physical(&payload, &[0.007, 0.0, 0.0, 0.012], 0.3, 1.0).unwrap_err();
+        assert!(note.contains("first-moment"), "{note}");
     }
 }

@@ -280,6 +280,31 @@ impl Trajectory {
         )
     }
 
+    /// Samples `start .. start + len` (clamped to the trajectory).
+    pub fn rows(&self, start: usize, len: usize) -> Self {
+        let start = start.min(self.len());
+        let len = len.min(self.len() - start);
+        let cut = |m: &DMatrix<f64>| m.rows(start, len).into_owned();
+        Self {
+            t: self.t[start..start + len].to_vec(),
+            q: cut(&self.q),
+            qd: cut(&self.qd),
+            qdd: self.qdd.as_ref().map(cut),
+            tau: cut(&self.tau),
+        }
+    }
+
+    /// `n` contiguous pieces of (almost) equal length, in time order.
+    pub fn split(&self, n: usize) -> Vec<Self> {
+        let n = n.clamp(1, self.len().max(1));
+        (0..n)
+            .map(|k| {
+                let (start, end) = (k * self.len() / n, (k + 1) * self.len() / n);
+                self.rows(start, end - start)
+            })
+            .collect()
+    }
+
     /// The `(q, qd, qdd)` states, if accelerations are known.
     pub fn states(&self) -> Option<States> {
         let qdd = self.qdd.clone()?;
