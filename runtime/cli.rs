@@ -75,6 +75,9 @@ pub enum Command {
     /// Run the whole SDNN study on the virtual robot: record, preprocess,
     /// synthesize, train over seeds, compare; writes a results folder.
     Reproduce(crate::commands::ReproduceArgs),
+    /// Run the SDNN study on measured recordings: train on the start of each,
+    /// test on the rest (e.g. the Panda log: `--test-from 15`).
+    Study(crate::commands::StudyArgs),
     /// Record trajectories on the virtual robot (CSV per trajectory).
     Simulate(crate::commands::SimulateArgs),
     /// Preprocess measured CSV files (downsample, filter, differentiate).
@@ -117,6 +120,7 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         } => tau(&model, &input, output.as_deref(), angles),
         Command::Models { format } => models(format),
         Command::Reproduce(args) => crate::commands::reproduce(&args),
+        Command::Study(args) => crate::commands::study_command(&args),
         Command::Simulate(args) => crate::commands::simulate(&args),
         Command::Preprocess(args) => crate::commands::preprocess(&args),
         Command::Synth(args) => crate::commands::synth(&args),

@@ -168,6 +168,83 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
     Ok(())
 }
 
+#[derive(Debug, Args)]
+pub struct StudyArgs {
+    /// Compiled model (the analytical model).
+    #[arg(long)]
+    pub model: String,
+    /// Measured CSV recordings.
+    #[arg(long, required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
+    /// Test on each recording from this time on (s after its start); train before.
+    #[arg(long)]
+    pub test_from: f64,
+    /// Training pieces per recording (the networks validate on whole pieces).
+    #[arg(long, default_value_t = 5)]
+    pub train_pieces: usize,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub filter: FilterArgs,
+    /// Results folder.
+    #[arg(long, default_value = "results")]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Seeds per network.
+    #[arg(long, default_value_t = 5)]
+    pub seeds: usize,
+    /// Maximum training epochs per network.
+    #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
+    pub epochs: usize,
+    /// Hidden layer widths, comma separated.
+    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden)]
+    pub hidden: Vec<usize>,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+/// The SDNN study on measured recordings (see `study::run_on_measurements`).
+pub fn study_command(args: &StudyArgs) -> Result<()> {
+    let nominal = find_model(&args.model)?;
+    let recordings = args
+        .data
+        .iter()
+        .map(|path| Ok(read_csv(path, &args.input.options(Some(nominal.dof()), 2))?))
+        .collect::<Result<Vec<_>>>()?;
+    let config = StudyConfig {
+        seed: args.seed,
+        seeds: args.seeds,
+        max_epochs: args.epochs,
+        hidden: args.hidden.clone(),
+        preprocess: args.filter.preprocess()?,
+        trajectories: recordings.len() * (args.train_pieces + 1),
+        train: recordings.len() * args.train_pieces,
+        ..StudyConfig::default()
+    };
+    let split = study::MeasuredSplit {
+        test_from: args.test_from,
+        train_pieces: args.train_pieces,
+    };
+    let bar = progress_bar();
+    let report = |done: usize, total: usize, stage: &str| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(stage.to_string());
+    };
+    let result =
+        study::run_on_measurements(nominal, &recordings, split, &config, &args.out, &report)?;
+    bar.finish_and_clear();
+    match args.format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&result)?),
+        Format::Text => {
+            println!("{}", crate::study_report::markdown(&result));
+            println!("Results written to {}", args.out.display());
+        }
+    }
+    Ok(())
+}
+
 fn progress_bar() -> ProgressBar {
     let bar = ProgressBar::new(1);
     if let Ok(style) = ProgressStyle::with_template("{msg:24} [{bar:30}] {pos}/{len} {elapsed}") {

@@ -143,6 +143,100 @@ pub fn run(
         .with_context(|| format!("creating {}", out.display()))?;
     let data = record(plant, nominal, config, out, progress)?;
     let filter_comparison = compare_filters(nominal, &data, config)?;
+    analyse(
+        Some(plant),
+        nominal,
+        data,
+        filter_comparison,
+        config,
+        out,
+        progress,
+    )
+}
+
+/// How measured recordings are cut into training and test data.
+#[derive(Debug, Clone, Copy)]
+pub struct MeasuredSplit {
+    /// Test on each recording from this time (s after its start) on.
+    pub test_from: f64,
+    /// Training pieces per recording: the networks' validation split holds
+    /// out whole pieces, so it needs several.
+    pub train_pieces: usize,
+}
+
+/// The study on measured recordings (no simulator): each recording is
+/// preprocessed whole, then cut in time into training pieces and one test
+/// piece. There is no open-loop replay (no plant to replay on) and no
+/// filter comparison (the user chose the filter).
+pub fn run_on_measurements(
+    nominal: &dyn Dynamics,
+    recordings: &[Trajectory],
+    split: MeasuredSplit,
+    config: &StudyConfig,
+    out: &Path,
+    progress: Progress<'_>,
+) -> Result<StudyResult> {
+    if config.seeds == 0 || split.train_pieces < 2 {
+        bail!("the study needs at least 1 seed and 2 training pieces");
+    }
+    let mut data = Data {
+        raw: Vec::new(),
+        processed: Vec::new(),
+        references: Vec::new(),
+        train: Vec::new(),
+        test: Vec::new(),
+    };
+    for (r, raw) in recordings.iter().enumerate() {
+        if raw.dof() != nominal.dof() {
+            bail!(
+                "recording {} has {} joints, model `{}` has {}",
+                r + 1,
+                raw.dof(),
+                nominal.name(),
+                nominal.dof()
+            );
+        }
+        let processed = config.preprocess.apply(raw)?;
+        let cut_at = |t: &Trajectory| {
+            let start = t.t().first().copied().unwrap_or(0.0);
+            t.t().partition_point(|&x| x < start + split.test_from)
+        };
+        let (cut, raw_cut) = (cut_at(&processed), cut_at(raw));
+        if cut < split.train_pieces * 10 || processed.len() - cut < 10 {
+            bail!(
+                "recording {}: cutting at {} s leaves too little data to train ({} samples) or test ({})",
+                r + 1,
+                split.test_from,
+                cut,
+                processed.len() - cut
+            );
+        }
+        let train = processed.rows(0, cut).split(split.train_pieces);
+        let raw_train = raw.rows(0, raw_cut).split(split.train_pieces);
+        for (piece, raw_piece) in train.into_iter().zip(raw_train) {
+            data.train.push(data.processed.len());
+            data.processed.push(piece);
+            data.raw.push(raw_piece);
+        }
+        data.test.push(data.processed.len());
+        data.processed
+            .push(processed.rows(cut, processed.len() - cut));
+        data.raw.push(raw.rows(raw_cut, raw.len() - raw_cut));
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    analyse(None, nominal, data, Vec::new(), config, out, progress)
+}
+
+/// Trains and compares every model on split data, writes the report.
+fn analyse(
+    plant: Option<&dyn Dynamics>,
+    nominal: &dyn Dynamics,
+    data: Data,
+    filter_comparison: Vec<(String, f64)>,
+    config: &StudyConfig,
+    out: &Path,
+    progress: Progress<'_>,
+) -> Result<StudyResult> {
     let analytical = analytical_result(nominal, &data)?;
     let jobs = jobs(config);
     let networks = train_all(nominal, &data, config, &jobs, out, progress)?;
@@ -153,9 +247,11 @@ pub fn run(
             seeds.iter().map(|(mse, _)| mse.clone()).collect(),
         ));
     }
-    open_loop_evaluation(plant, nominal, &data, config, &jobs, &networks, &mut models)?;
+    if let Some(plant) = plant {
+        open_loop_evaluation(plant, nominal, &data, config, &jobs, &networks, &mut models)?;
+    }
     let result = StudyResult {
-        plant: plant.name().to_string(),
+        plant: plant.map_or("measured data".to_string(), |p| p.name().to_string()),
         nominal: nominal.name().to_string(),
         train_trajectories: data.train.clone(),
         test_trajectories: data.test.clone(),

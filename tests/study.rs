@@ -199,3 +199,74 @@ fn jittery_timestamps_need_resample() {
         String::from_utf8_lossy(&run.stderr)
     );
 }
+
+/// The study on one measured recording: trained on its start, tested on its
+/// end, no open-loop replay.
+#[test]
+fn study_on_a_measured_recording_splits_it_in_time() {
+    let (data, out) = (Dir::new(), Dir::new());
+    let recording = data.path().join("run.csv");
+    let simulate = sdnn(&[
+        "simulate",
+        "--out",
+        data.path().to_str().unwrap(),
+        "--count",
+        "1",
+        "--duration",
+        "8",
+    ]);
+    assert!(
+        simulate.status.success(),
+        "{}",
+        String::from_utf8_lossy(&simulate.stderr)
+    );
+    std::fs::rename(data.path().join("trajectory_01.csv"), &recording).unwrap();
+    let run = sdnn(&[
+        "study",
+        "--model",
+        "kinova_gen3_lite_3dof",
+        "--data",
+        recording.to_str().unwrap(),
+        "--test-from",
+        "6",
+        "--train-pieces",
+        "3",
+        "--seeds",
+        "1",
+        "--epochs",
+        "3",
+        "--out",
+        out.path().to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let result: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(result["plant"], "measured data");
+    assert_eq!(result["train_trajectories"], serde_json::json!([0, 1, 2]));
+    assert_eq!(result["test_trajectories"], serde_json::json!([3]));
+    for model in result["models"].as_array().unwrap() {
+        assert!(model["mse_mean"].as_f64().unwrap().is_finite());
+        assert!(model["open_loop_rms"].is_null());
+    }
+    let late = sdnn(&[
+        "study",
+        "--model",
+        "kinova_gen3_lite_3dof",
+        "--data",
+        recording.to_str().unwrap(),
+        "--test-from",
+        "8",
+        "--out",
+        out.path().to_str().unwrap(),
+    ]);
+    assert_eq!(
+        late.status.code(),
+        Some(2),
+        "nothing left to test must be an error"
+    );
+}
