@@ -67,7 +67,8 @@ pub struct FilterArgs {
     /// Keep every n-th sample (10: 1 kHz -> 100 Hz).
     #[arg(long, default_value_t = 10)]
     pub downsample: usize,
-    /// Velocity filter: `sma` (moving average, thesis), `sg` (Savitzky-Golay, zero-phase) or `none`.
+    /// Velocity filter: `sma` (centred moving average, thesis), `sg` (Savitzky-Golay,
+    /// cubic, zero-phase; odd window) or `none`.
     #[arg(long, default_value = "sma")]
     pub filter: String,
     /// Filter window in samples after downsampling (40 = 0.4 s at 100 Hz).
@@ -82,8 +83,14 @@ impl FilterArgs {
                 window: self.window,
                 centered: true,
             },
+            "sg" if self.window % 2 == 0 => bail!(
+                "--window {} for `sg`: a Savitzky-Golay window has a centre sample, so it must be odd ({} or {})",
+                self.window,
+                self.window.saturating_sub(1).max(1),
+                self.window + 1
+            ),
             "sg" => Filter::SavitzkyGolay {
-                window: self.window | 1,
+                window: self.window,
                 order: 3,
             },
             "none" => Filter::None,
