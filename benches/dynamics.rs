@@ -79,19 +79,10 @@ fn tau_against_rnea<const N: usize>(
     group.finish();
 }
 
-fn panda(c: &mut Criterion) {
+fn six_and_seven_joints(c: &mut Criterion) {
+    tau_against_rnea(c, "kinova_gen3_lite", sdnn::models::kinova_gen3_lite::tau);
     tau_against_rnea(c, "panda", sdnn::models::panda::tau);
-    let q = [0.1, 0.2, 0.3, -0.4, 0.5, 0.6, 0.7];
-    c.bench_function("panda/generated gravity", |b| {
-        b.iter(|| sdnn::models::panda::gravity(black_box(&q)))
-    });
-    c.bench_function("panda/generated mass_matrix", |b| {
-        b.iter(|| sdnn::models::panda::mass_matrix(black_box(&q)))
-    });
-    c.bench_function("panda/sin_cos x7", |b| {
-        b.iter(|| q.map(|x| sdnn::models::panda::sin_cos(black_box(x))))
-    });
 }
 
-criterion_group!(benches, kinova_3dof, panda);
+criterion_group!(benches, kinova_3dof, six_and_seven_joints);
 criterion_main!(benches);
