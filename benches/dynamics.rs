@@ -52,13 +52,12 @@ fn kinova_3dof(c: &mut Criterion) {
     group.finish();
 }
 
+/// A generated `tau` of an N-joint model.
+type Tau<const N: usize> = fn(&[f64; N], &[f64; N], &[f64; N]) -> [f64; N];
+
 /// Generated tau against the oracle RNEA for an N-joint model, at a fixed
 /// generic state.
-fn tau_against_rnea<const N: usize>(
-    c: &mut Criterion,
-    name: &str,
-    tau: fn(&[f64; N], &[f64; N], &[f64; N]) -> [f64; N],
-) {
+fn tau_against_rnea<const N: usize>(c: &mut Criterion, name: &str, tau: Tau<N>) {
     let state = |k: f64| std::array::from_fn::<f64, N, _>(|i| (0.37 * (i as f64 + k)).sin());
     let (q, qd, qdd) = (state(1.0), state(2.0), state(3.0));
     let model = oracle_model(name);

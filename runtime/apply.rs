@@ -193,6 +193,7 @@ mod tests {
             mse_before: vec![],
             mse_after: vec![],
             effects,
+            notes: vec![],
         }
     }
 

@@ -83,7 +83,7 @@ impl FilterArgs {
                 window: self.window,
                 centered: true,
             },
-            "sg" if self.window % 2 == 0 => bail!(
+            "sg" if self.window.is_multiple_of(2) => bail!(
                 "--window {} for `sg`: a Savitzky-Golay window has a centre sample, so it must be odd ({} or {})",
                 self.window,
                 self.window.saturating_sub(1).max(1),

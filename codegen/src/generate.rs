@@ -473,8 +473,8 @@ impl Model {
     fn regressor(&self, rigid: &[Vec<Poly>]) -> Vec<Poly> {
         let n = self.dof;
         let mut rows = Vec::with_capacity(n * 14 * n);
-        for i in 0..n {
-            rows.extend(rigid[i].iter().cloned());
+        for (i, rigid_row) in rigid.iter().enumerate() {
+            rows.extend(rigid_row.iter().cloned());
             for j in 0..n {
                 let own = |input, value| {
                     if i == j {

@@ -178,8 +178,8 @@ impl Dag {
     pub fn sum2(&mut self, a: NodeId, b: NodeId) -> NodeId {
         match (self.constant_value(a), self.constant_value(b)) {
             (Some(x), Some(y)) => self.constant(x + y),
-            (Some(x), _) if x == 0.0 => b,
-            (_, Some(y)) if y == 0.0 => a,
+            (Some(0.0), _) => b,
+            (_, Some(0.0)) => a,
             _ => self.intern(Node::Add(vec![a.min(b), a.max(b)])),
         }
     }
@@ -189,11 +189,11 @@ impl Dag {
     pub fn product2(&mut self, a: NodeId, b: NodeId) -> NodeId {
         match (self.constant_value(a), self.constant_value(b)) {
             (Some(x), Some(y)) => return self.constant(x * y),
-            (Some(x), _) | (_, Some(x)) if x == 0.0 => return self.constant(0.0),
-            (Some(x), _) if x == 1.0 => return b,
-            (_, Some(y)) if y == 1.0 => return a,
-            (Some(x), _) if x == -1.0 => return self.negate(b),
-            (_, Some(y)) if y == -1.0 => return self.negate(a),
+            (Some(0.0), _) | (_, Some(0.0)) => return self.constant(0.0),
+            (Some(1.0), _) => return b,
+            (_, Some(1.0)) => return a,
+            (Some(-1.0), _) => return self.negate(b),
+            (_, Some(-1.0)) => return self.negate(a),
             _ => {}
         }
         if let Node::Neg(x) = self.nodes[a] {

@@ -347,16 +347,15 @@ impl<'a> Tracer<'a> {
         let n = rotations.len();
         let zero = self.dag.constant(0.0);
         let mut twists: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
-        for k in 0..n {
+        for (k, rotation) in rotations.iter().enumerate() {
             let p = self.constants(&self.body(k).translation);
             let mut row = Vec::with_capacity(k + 1);
-            for j in 0..k {
-                let (w, v) = twists[k - 1][j];
+            for &(w, v) in twists.last().map_or(&[][..], Vec::as_slice) {
                 let wxp = self.cross(w, p);
                 let v = self.add(v, wxp);
                 row.push((
-                    self.inverse_rotate(&rotations[k], w),
-                    self.inverse_rotate(&rotations[k], v),
+                    self.inverse_rotate(rotation, w),
+                    self.inverse_rotate(rotation, v),
                 ));
             }
             row.push((self.constants(&self.body(k).axis), [zero; 3]));
