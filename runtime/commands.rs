@@ -157,19 +157,30 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
         learning_rate: args.learning_rate,
         ..StudyConfig::default()
     };
+    run_study(&args.out, args.format, |progress| {
+        study::run(plant, nominal, &config, &args.out, progress)
+    })
+}
+
+/// Runs a study behind a progress bar and prints its table.
+fn run_study(
+    out: &Path,
+    format: Format,
+    study: impl FnOnce(study::Progress<'_>) -> Result<study::StudyResult>,
+) -> Result<()> {
     let bar = progress_bar();
     let report = |done: usize, total: usize, stage: &str| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
         bar.set_message(stage.to_string());
     };
-    let result = study::run(plant, nominal, &config, &args.out, &report)?;
+    let result = study(&report)?;
     bar.finish_and_clear();
-    match args.format {
+    match format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&result)?),
         Format::Text => {
             println!("{}", crate::study_report::markdown(&result));
-            println!("Results written to {}", args.out.display());
+            println!("Results written to {}", out.display());
         }
     }
     Ok(())
@@ -233,23 +244,9 @@ pub fn study_command(args: &StudyArgs) -> Result<()> {
         test_from: args.test_from,
         train_pieces: args.train_pieces,
     };
-    let bar = progress_bar();
-    let report = |done: usize, total: usize, stage: &str| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-        bar.set_message(stage.to_string());
-    };
-    let result =
-        study::run_on_measurements(nominal, &recordings, split, &config, &args.out, &report)?;
-    bar.finish_and_clear();
-    match args.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&result)?),
-        Format::Text => {
-            println!("{}", crate::study_report::markdown(&result));
-            println!("Results written to {}", args.out.display());
-        }
-    }
-    Ok(())
+    run_study(&args.out, args.format, |progress| {
+        study::run_on_measurements(nominal, &recordings, split, &config, &args.out, progress)
+    })
 }
 
 fn progress_bar() -> ProgressBar {
