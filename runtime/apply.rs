@@ -34,11 +34,42 @@ pub fn apply_to_text(
         match (effect.kind, effect.joint) {
             (Kind::Payload, _) => {
                 let mass = value("mass").context("payload without mass")?;
-                let com: Vec<f64> = effect.parameters["com"]
-                    .as_array()
-                    .map(|a| a.iter().filter_map(serde_json::Value::as_f64).collect())
-                    .unwrap_or_default();
-                add_payload(&mut doc, mass, &com, last_link)?;
+                let com = vector(&effect.parameters, "com")?;
+                let com = com
+                    .iter()
+                    .zip(["x", "y", "z"])
+                    .map(|(c, axis)| {
+                        c.with_context(|| {
+                            format!(
+                                "the payload's COM {axis} component was not identifiable from the \
+                                 data (null in the diagnosis): record motions that determine it, \
+                                 or add the payload by hand"
+                            )
+                        })
+                    })
+                    .collect::<Result<Vec<f64>>>()?;
+                let parent = effect.link.as_deref().unwrap_or(last_link);
+                add_payload(&mut doc, mass, &com, parent)?;
+            }
+            (Kind::InertialError, _) => {
+                let link = effect
+                    .link
+                    .as_deref()
+                    .context("inertial error without a link")?;
+                let mass = value("mass").context("inertial error without mass")?;
+                let nominal_mass = value("nominal_mass").context("missing nominal_mass")?;
+                let nominal_com = vector(&effect.parameters, "nominal_com")?;
+                let nominal_com: Vec<f64> = nominal_com
+                    .iter()
+                    .map(|c| c.context("nominal_com must be numbers"))
+                    .collect::<Result<_>>()?;
+                // A component the data did not determine stays as modelled.
+                let com: Vec<f64> = vector(&effect.parameters, "com")?
+                    .iter()
+                    .zip(&nominal_com)
+                    .map(|(c, n)| c.unwrap_or(*n))
+                    .collect();
+                correct_link(&mut doc, link, mass, &com, nominal_mass, &nominal_com)?;
             }
             (kind, Some(joint)) => {
                 let (key, parameter) = match kind {
@@ -46,7 +77,7 @@ pub fn apply_to_text(
                     Kind::CoulombFriction => ("coulomb", "level"),
                     Kind::Armature => ("armature", "inertia"),
                     Kind::TorqueOffset => ("offset", "offset"),
-                    Kind::Payload => unreachable!("handled above"),
+                    Kind::Payload | Kind::InertialError => unreachable!("handled above"),
                 };
                 let name = joints.get(joint - 1).context("joint index out of range")?;
                 add_joint_effect(
@@ -90,6 +121,91 @@ fn add_joint_effect(doc: &mut DocumentMut, joint: &str, key: &str, delta: f64) -
         _ => bail!("`effects` of joint `{joint}` is not a table"),
     }
     Ok(())
+}
+
+/// A 3-vector parameter whose entries may be null (not identifiable).
+fn vector(
+    parameters: &serde_json::Map<String, serde_json::Value>,
+    name: &str,
+) -> Result<Vec<Option<f64>>> {
+    let values = parameters
+        .get(name)
+        .and_then(serde_json::Value::as_array)
+        .with_context(|| format!("missing `{name}`"))?;
+    if values.len() != 3 {
+        bail!("`{name}` must have 3 entries, found {}", values.len());
+    }
+    Ok(values.iter().map(serde_json::Value::as_f64).collect())
+}
+
+/// Corrects a link's mass and COM by the diagnosed change of the body: the
+/// mass and first moment change by (mass - nominal) and
+/// (mass * com - nominal_mass * nominal_com), so a link whose body also
+/// lumps fixed children gets the change, not the lumped values. The inertia
+/// about the link's COM is kept (the diagnosis assumes it as modelled).
+fn correct_link(
+    doc: &mut DocumentMut,
+    link: &str,
+    mass: f64,
+    com: &[f64],
+    nominal_mass: f64,
+    nominal_com: &[f64],
+) -> Result<()> {
+    let links = doc
+        .get_mut("links")
+        .and_then(Item::as_array_of_tables_mut)
+        .context("the description has no [[links]]")?;
+    let table = links
+        .iter_mut()
+        .find(|t| t.get("name").and_then(Item::as_str) == Some(link))
+        .with_context(|| format!("no link named `{link}` in the description"))?;
+    let own_mass = table.get("mass").and_then(number).unwrap_or(0.0);
+    let own_com: Vec<f64> = match table.get("com").and_then(Item::as_array) {
+        Some(a) => a.iter().map(|v| value_number(v).unwrap_or(0.0)).collect(),
+        None => vec![0.0; 3],
+    };
+    if own_com.len() != 3 {
+        bail!("link `{link}`: `com` must have 3 entries");
+    }
+    let new_mass = own_mass + (mass - nominal_mass);
+    if !new_mass.is_finite() || new_mass <= 0.0 {
+        bail!("link `{link}`: the corrected mass {new_mass} kg is not positive");
+    }
+    let new_com: Vec<f64> = (0..3)
+        .map(|k| {
+            (own_mass * own_com[k] + mass * com[k] - nominal_mass * nominal_com[k]) / new_mass
+        })
+        .collect();
+    set_keeping_decor(table, "mass", Value::from(new_mass));
+    set_keeping_decor(
+        table,
+        "com",
+        Value::Array(new_com.iter().copied().collect::<Array>()),
+    );
+    Ok(())
+}
+
+fn number(item: &Item) -> Option<f64> {
+    item.as_value().and_then(value_number)
+}
+
+fn value_number(value: &Value) -> Option<f64> {
+    value
+        .as_float()
+        .or_else(|| value.as_integer().map(|i| i as f64))
+}
+
+/// Replaces a key's value, keeping the comments around it.
+fn set_keeping_decor(table: &mut Table, key: &str, mut value: Value) {
+    match table.get_mut(key).and_then(Item::as_value_mut) {
+        Some(old) => {
+            *value.decor_mut() = old.decor().clone();
+            *old = value;
+        }
+        None => {
+            table.insert(key, Item::Value(value));
+        }
+    }
 }
 
 fn add_payload(doc: &mut DocumentMut, mass: f64, com: &[f64], parent: &str) -> Result<()> {
@@ -201,6 +317,7 @@ mod tests {
         Effect {
             kind,
             joint,
+            link: None,
             parameters: params.as_object().cloned().unwrap_or_default(),
             ci95: Default::default(),
             share_explained: 0.5,

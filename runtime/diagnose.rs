@@ -15,8 +15,39 @@
 //! (e.g. a negative "armature" means the model's inertia about that joint is
 //! too high) and selection goes on with the other candidates.
 //! Parameters come from least squares with 95% confidence intervals.
+//!
+//! Inertial effects are fitted as physical bodies, not as free columns:
+//! - `payload`: a point mass m at c (last link's frame) added to the last
+//!   link. Its standard parameters are m * [1, c, |c|^2 E - c c^T] (the
+//!   inertia about the link origin included, which is what a point mass at
+//!   c adds), so the fit is nonlinear in c: Levenberg-Marquardt on the
+//!   moment matrices of the link's ten inertial regressor columns, started
+//!   from the linear fit of its mass and first-moment columns.
+//! - `inertial_error`: the mass and centre of mass of a link other than the
+//!   last differ from the model, its inertia about its centre of mass as
+//!   modelled. Standard parameters [m', m'c', I_C + m'(|c'|^2 E - c'c'^T)]
+//!   minus the model's; reported as the corrected mass and COM.
+//!
+//! Naming rule on the last link: an added point mass and a heavier last link
+//! change the same mass and first-moment columns (they differ only in
+//! second moments, which these data barely separate), so the last link gets
+//! one candidate, the payload: mass added at the tip. A negative fitted
+//! payload mass is a note (the last link is lighter than modelled), never a
+//! payload. Links before the last get `inertial_error` candidates.
+//!
+//! Identifiability: a candidate whose parameters the data cannot separate
+//! (its information matrix, after the already-selected effects are
+//! projected out and scaled to unit diagonal, has a relative eigenvalue
+//! below [`COLLINEAR`]: collinear columns, or parameters that only enter
+//! through a base-parameter combination, such as the first link's mass and
+//! COM, which act only through its inertia about the first axis) is never
+//! named; if it would have been selected, a note says so. A named payload's
+//! COM component whose 95% confidence half-width exceeds
+//! [`Settings::com_resolution`] of the arm's size is reported as `null` with
+//! a note: the data do not determine it (typically the component along the
+//! joint axes, which acts only through couplings with the first joint).
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Vector3};
 use serde::Serialize;
 
 use crate::dynamics::Dynamics;
@@ -32,14 +63,20 @@ pub enum Kind {
     Armature,
     TorqueOffset,
     Payload,
+    /// A link's mass and centre of mass differ from the model (`link`,
+    /// corrected `mass` kg and `com` [x, y, z] m in the link frame, and the
+    /// model's `nominal_mass`, `nominal_com`).
+    InertialError,
 }
 
 /// A named missing effect with its fitted parameters.
 #[derive(Debug, Clone, Serialize)]
 pub struct Effect {
     pub kind: Kind,
-    /// 1-based joint, or `None` for a payload.
+    /// 1-based joint, or `None` for a payload or an inertial error.
     pub joint: Option<usize>,
+    /// The link (its name in the description) of a payload or inertial error.
+    pub link: Option<String>,
     pub parameters: serde_json::Map<String, serde_json::Value>,
     pub ci95: serde_json::Map<String, serde_json::Value>,
     /// Fraction of the residual sum of squares this effect removes: of its
@@ -86,7 +123,15 @@ pub struct Settings {
     /// The arm's size (m): a payload's centre of mass must lie within it
     /// (see [`reach`]); infinite accepts any.
     pub reach: f64,
+    /// A payload COM component is reported only when its 95% confidence
+    /// half-width is at most this fraction of the arm's size ([`reach`] of
+    /// the model; 1 m when the model has no description).
+    pub com_resolution: f64,
 }
+
+/// Relative eigenvalue of a candidate's unit-diagonal information matrix
+/// below which its parameters are taken as not identifiable.
+pub const COLLINEAR: f64 = 1e-6;
 
 /// The arm's size: the summed joint offsets of the chain, base to tip.
 pub fn reach(model: &dyn Dynamics) -> f64 {
@@ -101,16 +146,91 @@ impl Default for Settings {
             min_gain: 0.10,
             min_t: 3.0,
             reach: f64::INFINITY,
+            com_resolution: 0.05,
         }
     }
 }
 
-/// One candidate: a kind, a joint, named parameter columns.
+/// One candidate: a kind, a joint or link, its columns and how its named
+/// parameters map to coefficients of those columns.
 struct Candidate {
     kind: Kind,
     joint: Option<usize>,
+    /// 0-based moving link and its name, for inertial candidates.
+    link: Option<(usize, String)>,
     names: Vec<&'static str>,
     columns: Vec<DVector<f64>>,
+    shape: Shape,
+}
+
+/// Parameters -> column coefficients.
+#[derive(Debug, Clone)]
+enum Shape {
+    /// The parameters are the coefficients.
+    Linear,
+    /// theta = (m, cx, cy, cz) over a link's ten inertial columns:
+    /// coefficients m * [1, c, |c|^2 E - c c^T] + `offset`, and `base` the
+    /// (mass, first moment) the linear start adds its fit to.
+    Body {
+        offset: [f64; 10],
+        base_mass: f64,
+        base_moment: Vector3<f64>,
+    },
+}
+
+impl Shape {
+    fn width(&self, columns: usize) -> usize {
+        match self {
+            Shape::Linear => columns,
+            Shape::Body { .. } => 4,
+        }
+    }
+
+    /// Coefficients and their Jacobian at theta.
+    fn map(&self, theta: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
+        match self {
+            Shape::Linear => (theta.to_vec(), DMatrix::identity(theta.len(), theta.len())),
+            Shape::Body { offset, .. } => {
+                let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
+                let unit = point_mass(1.0, &c);
+                let coefficients = (0..10).map(|k| m * unit[k] + offset[k]).collect();
+                let mut jacobian = DMatrix::zeros(10, 4);
+                for k in 0..10 {
+                    jacobian[(k, 0)] = unit[k];
+                }
+                let (x, y, z) = (c.x, c.y, c.z);
+                let partial = [
+                    [0.0, 1.0, 0.0, 0.0, 0.0, -y, 2.0 * x, -z, 0.0, 2.0 * x],
+                    [0.0, 0.0, 1.0, 0.0, 2.0 * y, -x, 0.0, 0.0, -z, 2.0 * y],
+                    [0.0, 0.0, 0.0, 1.0, 2.0 * z, 0.0, 2.0 * z, -x, -y, 0.0],
+                ];
+                for (a, row) in partial.iter().enumerate() {
+                    for k in 0..10 {
+                        jacobian[(k, a + 1)] = m * row[k];
+                    }
+                }
+                (coefficients, jacobian)
+            }
+        }
+    }
+}
+
+/// Standard parameters (m, m*c, inertia about the origin in the order
+/// ixx, ixy, iyy, ixz, iyz, izz) of a point mass m at c.
+fn point_mass(m: f64, c: &Vector3<f64>) -> [f64; 10] {
+    let (x, y, z) = (c.x, c.y, c.z);
+    [
+        m,
+        m * x,
+        m * y,
+        m * z,
+        m * (y * y + z * z),
+        -m * x * y,
+        m * (x * x + z * z),
+        -m * x * z,
+        -m * y * z,
+        m * (x * x + y * y),
+    ]
 }
 
 /// Stacked data: rows are (sample, joint) pairs, sample-major.
@@ -176,7 +296,8 @@ impl Moments {
     fn sse(&self, g: usize, j: usize, columns: &[usize], theta: &DVector<f64>) -> f64 {
         let a = self.xx[g][j].select_rows(columns).select_columns(columns);
         let b = self.xr[g][j].select_rows(columns);
-        self.rr[g][j] - 2.0 * theta.dot(&b) + theta.dot(&(a * theta))
+        // Clamped: rounding can push a near-perfect fit's sum below zero.
+        (self.rr[g][j] - 2.0 * theta.dot(&b) + theta.dot(&(a * theta))).max(0.0)
     }
 }
 
@@ -195,10 +316,19 @@ pub fn diagnose(
     reject_duplicates(trajectories)?;
     let (data, candidates) = stack(model, trajectories)?;
     let moments = Moments::new(&data, &candidates);
-    let (selected, notes) = select(&moments, data.dof, &candidates, settings);
-    let mse_before = cv_mse_per_joint(&moments, data.dof, &[]);
-    let mse_after = cv_mse_per_joint(&moments, data.dof, &columns_of(&candidates, &selected));
-    let effects = describe(&moments, &candidates, &selected);
+    let (selected, mut notes) = select(&moments, data.dof, &candidates, settings);
+    let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
+    let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
+    let size = Some(reach(model))
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .unwrap_or(1.0);
+    let effects = describe(
+        &moments,
+        &candidates,
+        &selected,
+        settings.com_resolution * size,
+        &mut notes,
+    );
     Ok(Diagnosis {
         model: model.name().to_string(),
         samples: data.residual.len() / data.dof,
@@ -232,6 +362,33 @@ fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A moving link of the model: its name and standard parameters.
+struct Link {
+    name: String,
+    parameters: [f64; 10],
+}
+
+fn links(model: &dyn Dynamics) -> Vec<Link> {
+    let names: Vec<String> = crate::dynamics::parsed_description(model)
+        .map(|d| d.chain().bodies.iter().map(|b| b.link.clone()).collect())
+        .unwrap_or_default();
+    (0..model.dof())
+        .map(|k| {
+            let mut parameters = [0.0; 10];
+            if let Some(p) = model.parameters().get(10 * k..10 * k + 10) {
+                parameters.copy_from_slice(p);
+            }
+            Link {
+                name: names
+                    .get(k)
+                    .cloned()
+                    .unwrap_or_else(|| format!("link {}", k + 1)),
+                parameters,
+            }
+        })
+        .collect()
+}
+
 fn stack(
     model: &dyn Dynamics,
     trajectories: &[Trajectory],
@@ -243,8 +400,7 @@ fn stack(
     let mut group = Vec::with_capacity(rows);
     let mut qd = DVector::zeros(rows);
     let mut qdd = DVector::zeros(rows);
-    let mut payload = vec![DVector::zeros(rows); 4];
-    let last = 10 * (n - 1);
+    let mut inertial = vec![DVector::zeros(rows); 10 * n];
     let mut at = 0;
     for (g, traj) in trajectories.iter().enumerate() {
         if traj.dof() != n {
@@ -267,8 +423,8 @@ fn stack(
                 measured[at] = traj.tau()[(s, i)];
                 qd[at] = traj.qd()[(s, i)];
                 qdd[at] = accel[(s, i)];
-                for (k, column) in payload.iter_mut().enumerate() {
-                    column[at] = y[(i, last + k)];
+                for (k, column) in inertial.iter_mut().enumerate() {
+                    column[at] = y[(i, k)];
                 }
                 group.push(g);
                 at += 1;
@@ -281,7 +437,7 @@ fn stack(
         group,
         dof: n,
     };
-    let candidates = candidates(&data, &qd, &qdd, payload);
+    let candidates = candidates(&data, &qd, &qdd, inertial, &links(model));
     Ok((data, candidates))
 }
 
@@ -289,7 +445,8 @@ fn candidates(
     data: &Stacked,
     qd: &DVector<f64>,
     qdd: &DVector<f64>,
-    payload: Vec<DVector<f64>>,
+    mut inertial: Vec<DVector<f64>>,
+    links: &[Link],
 ) -> Vec<Candidate> {
     let n = data.dof;
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
@@ -303,20 +460,49 @@ fn candidates(
         let one = |kind, name, f: &dyn Fn(usize) -> f64| Candidate {
             kind,
             joint: Some(j),
+            link: None,
             names: vec![name],
             columns: vec![own(j, f)],
+            shape: Shape::Linear,
         };
         list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
         list.push(one(Kind::CoulombFriction, "level", &|r| moving_sign(qd[r])));
         list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
         list.push(one(Kind::TorqueOffset, "offset", &|_| 1.0));
     }
-    list.push(Candidate {
-        kind: Kind::Payload,
-        joint: None,
-        names: vec!["mass", "mx", "my", "mz"],
-        columns: payload,
-    });
+    for (k, link) in links.iter().enumerate().rev() {
+        let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
+        let (mass, moment) = (
+            link.parameters[0],
+            Vector3::new(link.parameters[1], link.parameters[2], link.parameters[3]),
+        );
+        let shape = if k + 1 == n {
+            Shape::Body {
+                offset: [0.0; 10],
+                base_mass: 0.0,
+                base_moment: Vector3::zeros(),
+            }
+        } else {
+            let com = if mass > 0.0 { moment / mass } else { Vector3::zeros() };
+            Shape::Body {
+                offset: point_mass(-mass, &com),
+                base_mass: mass,
+                base_moment: moment,
+            }
+        };
+        list.push(Candidate {
+            kind: if k + 1 == n {
+                Kind::Payload
+            } else {
+                Kind::InertialError
+            },
+            joint: None,
+            link: Some((k, link.name.clone())),
+            names: vec!["mass", "cx", "cy", "cz"],
+            columns,
+            shape,
+        });
+    }
     list
 }
 
@@ -345,27 +531,234 @@ fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<usize> {
         .collect()
 }
 
-/// Solves the normal equations; `None` when the columns are (nearly) collinear.
-fn solve(a: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
-    Some(a.cholesky()?.solve(b))
+fn width(candidate: &Candidate) -> usize {
+    candidate.shape.width(candidate.columns.len())
+}
+
+/// A least-squares fit of some candidates.
+struct Fit {
+    /// The candidates' parameters, concatenated in selection order.
+    theta: DVector<f64>,
+    /// Coefficients of their columns ([`columns_of`] order).
+    coefficients: DVector<f64>,
+    /// Information matrix J^T J at `theta`, J the residual's Jacobian.
+    information: DMatrix<f64>,
+}
+
+/// Solves H x = g for a symmetric positive semi-definite H by the
+/// pseudo-inverse of its unit-diagonal scaling (minimum-norm in scaled
+/// parameters when H is singular).
+fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
+    let k = h.nrows();
+    if k == 0 {
+        return DVector::zeros(0);
+    }
+    let d = DVector::from_fn(k, |i, _| {
+        let v = h[(i, i)];
+        if v > 0.0 { v.sqrt() } else { 1.0 }
+    });
+    let scaled = DMatrix::from_fn(k, k, |i, j| h[(i, j)] / (d[i] * d[j]));
+    let rhs = DVector::from_fn(k, |i, _| g[i] / d[i]);
+    let svd = scaled.svd(true, true);
+    let tolerance = 1e-12 * svd.singular_values.max().max(f64::MIN_POSITIVE);
+    let x = svd.solve(&rhs, tolerance).unwrap_or_else(|_| DVector::zeros(k));
+    DVector::from_fn(k, |i, _| x[i] / d[i])
+}
+
+/// Column coefficients and their Jacobian for concatenated parameters.
+fn coefficients(
+    candidates: &[Candidate],
+    selected: &[usize],
+    theta: &DVector<f64>,
+) -> (DVector<f64>, DMatrix<f64>) {
+    let columns: usize = selected.iter().map(|&c| candidates[c].columns.len()).sum();
+    let mut coefficients = DVector::zeros(columns);
+    let mut jacobian = DMatrix::zeros(columns, theta.len());
+    let (mut row, mut col) = (0, 0);
+    for &c in selected {
+        let candidate = &candidates[c];
+        let w = width(candidate);
+        let parameters: Vec<f64> = theta.rows(col, w).iter().copied().collect();
+        let (values, d) = candidate.shape.map(&parameters);
+        for (k, v) in values.iter().enumerate() {
+            coefficients[row + k] = *v;
+        }
+        jacobian.view_mut((row, col), (values.len(), w)).copy_from(&d);
+        row += values.len();
+        col += w;
+    }
+    (coefficients, jacobian)
+}
+
+/// Fits the `selected` candidates on the groups `keep` accepts: linear
+/// candidates exactly, bodies by Levenberg-Marquardt from the linear fit of
+/// their mass and first-moment columns. `None` when there are no data.
+fn fit(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    keep: impl Fn(usize) -> bool,
+) -> Option<Fit> {
+    let columns = columns_of(candidates, selected);
+    let (a, b) = m.normal_equations(&columns, keep);
+    if a.nrows() > 0 && a.diagonal().iter().all(|v| *v == 0.0) {
+        return None;
+    }
+    // Start: linear fit of every linear column and each body's first four.
+    let mut start_columns = Vec::new();
+    let mut at = 0;
+    for &c in selected {
+        let count = match candidates[c].shape {
+            Shape::Linear => candidates[c].columns.len(),
+            Shape::Body { .. } => 4,
+        };
+        start_columns.extend(at..at + count);
+        at += candidates[c].columns.len();
+    }
+    let a0 = a.select_rows(&start_columns).select_columns(&start_columns);
+    let x0 = pseudo_solve(&a0, &b.select_rows(&start_columns));
+    let mut theta = Vec::new();
+    let mut at = 0;
+    for &c in selected {
+        match &candidates[c].shape {
+            Shape::Linear => {
+                let count = candidates[c].columns.len();
+                theta.extend(x0.rows(at, count).iter());
+                at += count;
+            }
+            Shape::Body {
+                base_mass,
+                base_moment,
+                ..
+            } => {
+                let mass = base_mass + x0[at];
+                let moment = base_moment + Vector3::new(x0[at + 1], x0[at + 2], x0[at + 3]);
+                let com = if mass.abs() > 1e-9 {
+                    moment / mass
+                } else {
+                    Vector3::zeros()
+                };
+                theta.extend([mass, com.x, com.y, com.z]);
+                at += 4;
+            }
+        }
+    }
+    // Second start: every body as modelled (a link's change can be far from
+    // what its first-moment columns alone suggest, which then absorb inertia).
+    let mut modelled = theta.clone();
+    let mut at = 0;
+    let mut other_start = false;
+    for &c in selected {
+        let w = width(&candidates[c]);
+        if let Shape::Body {
+            base_mass,
+            base_moment,
+            ..
+        } = &candidates[c].shape
+            && *base_mass > 0.0
+        {
+            let com = base_moment / *base_mass;
+            modelled[at..at + 4].copy_from_slice(&[*base_mass, com.x, com.y, com.z]);
+            other_start = true;
+        }
+        at += w;
+    }
+    let mut starts = vec![DVector::from_vec(theta)];
+    if other_start {
+        starts.push(DVector::from_vec(modelled));
+    }
+    let (theta, coef, jacobian) = starts
+        .into_iter()
+        .map(|start| descend(candidates, selected, &a, &b, start))
+        .min_by(|x, y| x.3.total_cmp(&y.3))
+        .map(|(t, c, j, _)| (t, c, j))?;
+    let information = jacobian.transpose() * &a * &jacobian;
+    Some(Fit {
+        theta,
+        coefficients: coef,
+        information,
+    })
+}
+
+/// Levenberg-Marquardt from `theta` on the normal equations (a, b); one
+/// exact step when every candidate is linear. Returns the parameters, the
+/// column coefficients, their Jacobian and the objective.
+fn descend(
+    candidates: &[Candidate],
+    selected: &[usize],
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    mut theta: DVector<f64>,
+) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
+    let objective = |coefficients: &DVector<f64>| {
+        coefficients.dot(&(a * coefficients)) - 2.0 * coefficients.dot(b)
+    };
+    let nonlinear = selected
+        .iter()
+        .any(|&c| matches!(candidates[c].shape, Shape::Body { .. }));
+    let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
+    let mut value = objective(&coef);
+    let mut lambda = 1e-3;
+    for _ in 0..200 {
+        let gradient = jacobian.transpose() * (b - a * &coef);
+        let hessian = jacobian.transpose() * a * &jacobian;
+        let damped = if nonlinear {
+            let mut h = hessian.clone();
+            for i in 0..h.nrows() {
+                h[(i, i)] *= 1.0 + lambda;
+            }
+            h
+        } else {
+            hessian
+        };
+        let step = pseudo_solve(&damped, &gradient);
+        let trial = &theta + &step;
+        let (trial_coef, trial_jacobian) = coefficients(candidates, selected, &trial);
+        let trial_value = objective(&trial_coef);
+        if !nonlinear {
+            return (trial, trial_coef, trial_jacobian, trial_value);
+        }
+        if trial_value < value {
+            let decrease = value - trial_value;
+            theta = trial;
+            coef = trial_coef;
+            jacobian = trial_jacobian;
+            value = trial_value;
+            lambda = (lambda / 3.0).max(1e-12);
+            if decrease <= 1e-14 * value.abs().max(1e-300) {
+                break;
+            }
+        } else {
+            lambda *= 4.0;
+            if lambda > 1e12 {
+                break;
+            }
+        }
+    }
+    (theta, coef, jacobian, value)
 }
 
 /// Leave-one-trajectory-out MSE per joint of the residual after the effects.
-fn cv_mse_per_joint(m: &Moments, dof: usize, columns: &[usize]) -> Vec<f64> {
+fn cv_mse_per_joint(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> Vec<f64> {
+    let columns = columns_of(candidates, selected);
     let mut sse = vec![0.0; dof];
     let mut count = vec![0usize; dof];
     for g in 0..m.xx.len() {
-        let (a, b) = m.normal_equations(columns, |h| h != g);
-        let theta = if columns.is_empty() {
-            Some(DVector::zeros(0))
+        let coefficients = if selected.is_empty() {
+            DVector::zeros(0)
         } else {
-            solve(a, &b)
-        };
-        let Some(theta) = theta else {
-            return vec![f64::INFINITY; dof];
+            match fit(m, candidates, selected, |h| h != g) {
+                Some(f) => f.coefficients,
+                None => return vec![f64::INFINITY; dof],
+            }
         };
         for j in 0..dof {
-            sse[j] += m.sse(g, j, columns, &theta);
+            sse[j] += m.sse(g, j, &columns, &coefficients);
             count[j] += m.rows[g][j];
         }
     }
@@ -384,10 +777,48 @@ fn relative_gain(before: &[f64], after: &[f64]) -> f64 {
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
+/// Smallest eigenvalue of the unit-diagonal scaling of the information
+/// about the parameters at `range` once the others are projected out
+/// (the Schur complement); 0 when some parameter has no information.
+fn identifiability(information: &DMatrix<f64>, range: std::ops::Range<usize>) -> f64 {
+    let k = information.nrows();
+    let inside: Vec<usize> = range.clone().collect();
+    let outside: Vec<usize> = (0..k).filter(|i| !range.contains(i)).collect();
+    let icc = information.select_rows(&inside).select_columns(&inside);
+    let schur = if outside.is_empty() {
+        icc.clone()
+    } else {
+        let ioo = information.select_rows(&outside).select_columns(&outside);
+        let ioc = information.select_rows(&outside).select_columns(&inside);
+        let solved = DMatrix::from_columns(
+            &(0..inside.len())
+                .map(|c| pseudo_solve(&ioo, &ioc.column(c).into_owned()))
+                .collect::<Vec<_>>(),
+        );
+        &icc - ioc.transpose() * solved
+    };
+    let w = inside.len();
+    let mut least: f64 = 1.0;
+    let d: Vec<f64> = (0..w).map(|i| schur[(i, i)]).collect();
+    for i in 0..w {
+        // A parameter whose own information vanishes after projection.
+        if icc[(i, i)] <= 0.0 || d[i] <= COLLINEAR * icc[(i, i)] {
+            return 0.0;
+        }
+    }
+    let scaled = DMatrix::from_fn(w, w, |i, j| schur[(i, j)] / (d[i] * d[j]).sqrt());
+    for v in scaled.symmetric_eigenvalues().iter() {
+        least = least.min(*v);
+    }
+    least
+}
+
 /// Forward selection by cross-validated MSE with a significance check: each
 /// step adds the candidate that lowers some joint's held-out MSE the most
 /// (relative to that joint's current MSE, so a weak joint's effect is not
-/// drowned by a strong joint's torque scale).
+/// drowned by a strong joint's torque scale). Candidates whose parameters
+/// these data cannot identify on their own (see the module docs) do not
+/// compete; if one would still explain structure at the end, a note says so.
 fn select(
     m: &Moments,
     dof: usize,
@@ -397,14 +828,23 @@ fn select(
     let mut selected: Vec<usize> = Vec::new();
     let mut refused: Vec<usize> = Vec::new();
     let mut notes = Vec::new();
-    let mut current = cv_mse_per_joint(m, dof, &[]);
+    let unidentifiable: Vec<usize> = (0..candidates.len())
+        .filter(|&c| {
+            fit(m, candidates, &[c], |_| true).is_none_or(|f| {
+                identifiability(&f.information, 0..width(&candidates[c])) < COLLINEAR
+            })
+        })
+        .collect();
+    let mut current = cv_mse_per_joint(m, dof, candidates, &[]);
     loop {
         let best = (0..candidates.len())
-            .filter(|c| !selected.contains(c) && !refused.contains(c))
+            .filter(|c| {
+                !selected.contains(c) && !refused.contains(c) && !unidentifiable.contains(c)
+            })
             .map(|c| {
                 let mut trial = selected.clone();
                 trial.push(c);
-                let mse = cv_mse_per_joint(m, dof, &columns_of(candidates, &trial));
+                let mse = cv_mse_per_joint(m, dof, candidates, &trial);
                 (c, relative_gain(&current, &mse), mse)
             })
             .filter(|(_, gain, _)| gain.is_finite())
@@ -415,7 +855,27 @@ fn select(
         if gain < settings.min_gain {
             break;
         }
-        let Some(values) = significant(m, candidates, &trial, c, settings.min_t) else {
+        let Some(full) = fit(m, candidates, &trial, |_| true) else {
+            break;
+        };
+        let offset: usize = selected.iter().map(|&s| width(&candidates[s])).sum();
+        let w = width(&candidates[c]);
+        if identifiability(&full.information, offset..offset + w) < COLLINEAR {
+            notes.push(format!(
+                "{}: would cut a joint's held-out MSE by {:.0}%, but its parameters are collinear \
+                 with the effects already named ({}); not named",
+                label(&candidates[c]),
+                100.0 * gain,
+                selected
+                    .iter()
+                    .map(|&s| label(&candidates[s]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            refused.push(c);
+            continue;
+        }
+        let Some(values) = significant(m, candidates, &trial, &full, settings.min_t) else {
             break;
         };
         if let Err(note) = physical(&candidates[c], &values, gain, settings.reach) {
@@ -426,19 +886,63 @@ fn select(
         selected = trial;
         current = mse;
     }
+    for &c in &unidentifiable {
+        let mut trial = selected.clone();
+        trial.push(c);
+        let gain = relative_gain(&current, &cv_mse_per_joint(m, dof, candidates, &trial));
+        if gain >= settings.min_gain {
+            notes.push(format!(
+                "{}: would cut a joint's held-out MSE by {:.0}%, but these data cannot identify \
+                 its parameters (they act only through a combination of them, e.g. a base \
+                 parameter: only the inertia about the first joint's axis matters for the first \
+                 link); not named — record motions that excite it, or look for an effect with \
+                 the same signature",
+                label(&candidates[c]),
+                100.0 * gain
+            ));
+        }
+    }
     (selected, notes)
+}
+
+/// How a candidate is named in notes.
+fn label(candidate: &Candidate) -> String {
+    let kind = serde_json::to_value(candidate.kind)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default();
+    match (&candidate.joint, &candidate.link) {
+        (Some(j), _) => format!("{kind} on joint {}", j + 1),
+        (None, Some((k, name))) => format!("{kind} of link {} (`{name}`)", k + 1),
+        (None, None) => kind,
+    }
 }
 
 /// Whether fitted `values` can be the candidate's physical effect; if not,
 /// the note that says what the data show instead.
 fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Result<(), String> {
-    let at = candidate
-        .joint
-        .map_or("the last link".to_string(), |j| format!("joint {}", j + 1));
+    let at = match (&candidate.joint, &candidate.link) {
+        (Some(j), _) => format!("joint {}", j + 1),
+        (None, Some((k, name))) if candidate.kind == Kind::InertialError => {
+            format!("link {} (`{name}`)", k + 1)
+        }
+        _ => "the last link".to_string(),
+    };
     let percent = 100.0 * gain;
     let value = values[0];
     let meaning = match candidate.kind {
         Kind::TorqueOffset => return Ok(()),
+        Kind::InertialError => {
+            let distance = values[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
+            if value > 0.0 && distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a mass of {value:.4} kg with its centre of mass {distance:.2} m \
+                 from the link origin (the arm's size is {reach:.2} m): not a physical body; not \
+                 named (it would cut a joint's held-out MSE by {percent:.0}%)"
+            ));
+        }
         _ if value <= 0.0 => match candidate.kind {
             Kind::Armature => {
                 "the model's inertia about this joint is too high (an inertial error, not a rotor)"
@@ -452,17 +956,17 @@ fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Res
             _ => "the last link is lighter than modelled (an inertial error, not a payload)",
         },
         Kind::Payload => {
-            let com: Vec<f64> = values[1..].iter().map(|h| h / value).collect();
+            let com = &values[1..];
             let distance = com.iter().map(|c| c * c).sum::<f64>().sqrt();
             if distance <= reach {
                 return Ok(());
             }
             return Err(format!(
-                "{at}: the data fit a first-moment change m*c = [{:.4}, {:.4}, {:.4}] kg m with a mass of \
-                 only {value:.4} kg, i.e. a centre of mass {distance:.2} m away, beyond the arm's reach \
-                 ({reach:.2} m): an inertial error of the last link, not a payload; not named \
-                 (it would cut a joint's held-out MSE by {percent:.0}%)",
-                values[1], values[2], values[3]
+                "{at}: the data fit a mass of only {value:.4} kg with its centre of mass at \
+                 [{:.3}, {:.3}, {:.3}] m, {distance:.2} m away, beyond the arm's reach \
+                 ({reach:.2} m): a first-moment change, i.e. an inertial error of the last link, \
+                 not a payload; not named (it would cut a joint's held-out MSE by {percent:.0}%)",
+                com[0], com[1], com[2]
             ));
         }
         _ => return Ok(()),
@@ -477,66 +981,96 @@ fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Res
     ))
 }
 
-/// Full-data fit: parameters, their standard errors, and the residual SSE.
-fn fit_all(m: &Moments, columns: &[usize]) -> Option<(DVector<f64>, DVector<f64>, f64)> {
-    let (a, b) = m.normal_equations(columns, |_| true);
-    let theta = solve(a.clone(), &b)?;
-    let groups = 0..m.xx.len();
-    let sse: f64 = groups
-        .clone()
-        .flat_map(|g| (0..m.xx[g].len()).map(move |j| (g, j)))
-        .map(|(g, j)| m.sse(g, j, columns, &theta))
-        .sum();
+/// Full-data fit with the standard errors of its parameters.
+fn fit_all(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> Option<(Fit, DVector<f64>)> {
+    if selected.is_empty() {
+        return None;
+    }
+    let fit = fit(m, candidates, selected, |_| true)?;
+    let columns = columns_of(candidates, selected);
+    let sse: f64 = sse_per_joint(m, &columns, &fit.coefficients).iter().sum();
     let rows: usize = m.rows.iter().flatten().sum();
-    let sigma2 = sse.max(0.0) / (rows.saturating_sub(columns.len())).max(1) as f64;
-    let inverse = a.try_inverse()?;
-    let se = DVector::from_fn(columns.len(), |k, _| {
-        (sigma2 * inverse[(k, k)]).max(0.0).sqrt()
-    });
-    Some((theta, se, sse))
+    let sigma2 = sse.max(0.0) / (rows.saturating_sub(fit.theta.len())).max(1) as f64;
+    let k = fit.theta.len();
+    let covariance = DMatrix::from_columns(
+        &(0..k)
+            .map(|c| pseudo_solve(&fit.information, &DVector::from_fn(k, |r, _| f64::from(r == c))))
+            .collect::<Vec<_>>(),
+    );
+    let se = DVector::from_fn(k, |i, _| (sigma2 * covariance[(i, i)]).max(0.0).sqrt());
+    Some((fit, se))
 }
 
-/// The fitted parameters of `added` when every parameter that must be is
-/// significant (a payload's mass; its COM components may be zero).
+/// The fitted parameters of the last candidate of `trial` when it is
+/// significant: every parameter of a joint effect; a payload's mass (its COM
+/// components may be zero); for an inertial error, a change of the mass or
+/// of some COM component from the model's.
 fn significant(
     m: &Moments,
     candidates: &[Candidate],
     trial: &[usize],
-    added: usize,
+    full: &Fit,
     min_t: f64,
 ) -> Option<Vec<f64>> {
-    let (theta, se, _) = fit_all(m, &columns_of(candidates, trial))?;
+    let (_, se) = fit_all(m, candidates, trial)?;
+    let theta = &full.theta;
+    let added = *trial.last()?;
     let offset: usize = trial[..trial.len() - 1]
         .iter()
-        .map(|&c| candidates[c].columns.len())
+        .map(|&c| width(&candidates[c]))
         .sum();
-    let width = candidates[added].columns.len();
-    let tested = if candidates[added].kind == Kind::Payload {
-        1
-    } else {
-        width
+    let w = width(&candidates[added]);
+    let candidate = &candidates[added];
+    let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
+    let ok = match (&candidate.kind, &candidate.shape) {
+        (Kind::Payload, _) => t(0, 0.0) > min_t,
+        (
+            Kind::InertialError,
+            Shape::Body {
+                base_mass,
+                base_moment,
+                ..
+            },
+        ) => {
+            let com = if *base_mass > 0.0 {
+                base_moment / *base_mass
+            } else {
+                Vector3::zeros()
+            };
+            let nominal = [*base_mass, com.x, com.y, com.z];
+            (0..4).any(|k| t(k, nominal[k]) > min_t)
+        }
+        _ => (0..w).all(|k| t(k, 0.0) > min_t),
     };
-    (offset..offset + tested)
-        .all(|k| theta[k].abs() > min_t * se[k])
-        .then(|| theta.rows(offset, width).iter().copied().collect())
+    ok.then(|| theta.rows(offset, w).iter().copied().collect())
 }
 
-fn describe(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<Effect> {
-    let Some((theta, se, _)) = fit_all(m, &columns_of(candidates, selected)) else {
+fn describe(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    resolution: f64,
+    notes: &mut Vec<String>,
+) -> Vec<Effect> {
+    let Some((fit, se)) = fit_all(m, candidates, selected) else {
         return Vec::new();
     };
     let all = columns_of(candidates, selected);
     let sse_none = sse_per_joint(m, &[], &DVector::zeros(0));
-    let sse_with = sse_per_joint(m, &all, &theta);
+    let sse_with = sse_per_joint(m, &all, &fit.coefficients);
     let mut offset = 0;
     let mut effects = Vec::new();
     for (position, &c) in selected.iter().enumerate() {
         let candidate = &candidates[c];
-        let width = candidate.columns.len();
-        let values: Vec<(f64, f64)> = (offset..offset + width)
-            .map(|k| (theta[k], 1.96 * se[k]))
+        let w = width(candidate);
+        let values: Vec<(f64, f64)> = (offset..offset + w)
+            .map(|k| (fit.theta[k], 1.96 * se[k]))
             .collect();
-        offset += width;
+        offset += w;
         let without: Vec<usize> = selected
             .iter()
             .enumerate()
@@ -544,9 +1078,13 @@ fn describe(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<Ef
             .map(|(_, &s)| s)
             .collect();
         let rest = columns_of(candidates, &without);
-        let sse_without = fit_all(m, &rest).map_or(sse_none.clone(), |(theta, _, _)| {
-            sse_per_joint(m, &rest, &theta)
-        });
+        let sse_without = if without.is_empty() {
+            sse_none.clone()
+        } else {
+            fit_all(m, candidates, &without).map_or(sse_none.clone(), |(f, _)| {
+                sse_per_joint(m, &rest, &f.coefficients)
+            })
+        };
         let share = match candidate.joint {
             Some(j) => (sse_without[j] - sse_with[j]) / sse_none[j],
             None => {
@@ -555,44 +1093,74 @@ fn describe(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<Ef
             }
         };
         let share = share.clamp(0.0, 1.0);
-        effects.push(effect(candidate, &values, share));
+        effects.push(effect(candidate, &values, share, resolution, notes));
     }
     effects
 }
 
-/// Residual SSE per joint over all samples with `columns` fitted as `theta`.
-fn sse_per_joint(m: &Moments, columns: &[usize], theta: &DVector<f64>) -> Vec<f64> {
+/// Residual SSE per joint over all samples with `columns` fitted as `coefficients`.
+fn sse_per_joint(m: &Moments, columns: &[usize], coefficients: &DVector<f64>) -> Vec<f64> {
     let joints = m.xx.first().map_or(0, Vec::len);
     (0..joints)
-        .map(|j| (0..m.xx.len()).map(|g| m.sse(g, j, columns, theta)).sum())
+        .map(|j| {
+            (0..m.xx.len())
+                .map(|g| m.sse(g, j, columns, coefficients))
+                .sum()
+        })
         .collect()
 }
 
-fn effect(candidate: &Candidate, values: &[(f64, f64)], share: f64) -> Effect {
+fn effect(
+    candidate: &Candidate,
+    values: &[(f64, f64)],
+    share: f64,
+    resolution: f64,
+    notes: &mut Vec<String>,
+) -> Effect {
     use serde_json::{Map, Value, json};
     let mut parameters = Map::new();
     let mut ci95 = Map::new();
-    if candidate.kind == Kind::Payload {
+    if let Shape::Body {
+        base_mass,
+        base_moment,
+        ..
+    } = &candidate.shape
+    {
         let (m, dm) = values[0];
-        let com: Vec<f64> = values[1..].iter().map(|(h, _)| h / m).collect();
-        // First-order propagation of the m*c uncertainty to c.
-        let dcom: Vec<f64> = values[1..]
-            .iter()
-            .zip(&com)
-            .map(|((_, dh), c)| (dh / m).hypot(c * dm / m))
-            .collect();
         parameters.insert("mass".into(), json!(m));
-        parameters.insert("com".into(), json!(com));
         ci95.insert("mass".into(), json!([m - dm, m + dm]));
-        ci95.insert(
-            "com".into(),
-            Value::Array(
-                com.iter()
-                    .zip(&dcom)
-                    .map(|(c, d)| json!([c - d, c + d]))
-                    .collect(),
-            ),
-        );
+        let mut com = Vec::new();
+        let mut interval = Vec::new();
+        for (axis, &(c, dc)) in ["x", "y", "z"].iter().zip(&values[1..]) {
+            if dc <= resolution {
+                com.push(json!(c));
+                interval.push(json!([c - dc, c + dc]));
+            } else {
+                com.push(Value::Null);
+                interval.push(Value::Null);
+                notes.push(format!(
+                    "{}: the COM's {axis} component is not identifiable from these data \
+                     (fit {c:.3} m, 95% CI half-width {dc:.3} m > {resolution:.3} m); reported \
+                     as null — record motions that move the first joint together with the \
+                     others to determine it",
+                    label(candidate)
+                ));
+            }
+        }
+        parameters.insert("com".into(), Value::Array(com));
+        ci95.insert("com".into(), Value::Array(interval));
+        if candidate.kind == Kind::InertialError {
+            let nominal_com = if *base_mass > 0.0 {
+                base_moment / *base_mass
+            } else {
+                Vector3::zeros()
+            };
+            parameters.insert("nominal_mass".into(), json!(base_mass));
+            parameters.insert(
+                "nominal_com".into(),
+                json!([nominal_com.x, nominal_com.y, nominal_com.z]),
+            );
+        }
     } else {
         for (name, (value, half)) in candidate.names.iter().zip(values) {
             parameters.insert((*name).into(), json!(value));
@@ -602,6 +1170,7 @@ fn effect(candidate: &Candidate, values: &[(f64, f64)], share: f64) -> Effect {
     Effect {
         kind: candidate.kind,
         joint: candidate.joint.map(|j| j + 1),
+        link: candidate.link.as_ref().map(|(_, name)| name.clone()),
         parameters,
         ci95,
         share_explained: share,
@@ -675,8 +1244,10 @@ mod tests {
         Candidate {
             kind,
             joint,
+            link: None,
             names: vec![],
             columns: vec![],
+            shape: Shape::Linear,
         }
     }
 
@@ -698,8 +1269,8 @@ mod tests {
         let payload = candidate(Kind::Payload, None);
         // 0.5 kg at 0.1 m: a payload.
         assert!(physical(&payload, &[0.5, 0.0, 0.0, 0.05], 0.3, 1.0).is_ok());
-        // 7 g with m*c of 0.012 kg m: a COM 1.7 m away.
-        let note = physical(&payload, &[0.007, 0.0, 0.0, 0.012], 0.3, 1.0).unwrap_err();
+        // 7 g at 1.7 m (a first moment of 0.012 kg m): beyond the arm.
+        let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], 0.3, 1.0).unwrap_err();
         assert!(note.contains("first-moment"), "{note}");
     }
 }
