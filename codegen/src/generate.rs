@@ -215,7 +215,7 @@ impl Spec<'_> {
         let structured = self
             .traced
             .as_ref()
-            .map(|roots| (roots, traced_dag.operation_count(roots)));
+            .map(|roots| (roots, traced_dag.negation_aware_count(roots)));
         let (dag, roots, ops, form) = match (&expanded, structured) {
             (Some((dag, roots, ops)), Some((_, traced_ops))) if *ops <= traced_ops => {
                 (dag, roots, *ops, "expanded")
@@ -253,7 +253,7 @@ fn horner(outputs: &[Poly], inputs: &[Input]) -> (Dag, Vec<NodeId>, usize) {
         .map(|priority| {
             let mut dag = Dag::default();
             let roots: Vec<NodeId> = reduced.iter().map(|p| dag.horner(p, priority)).collect();
-            let ops = dag.operation_count(&roots);
+            let ops = dag.negation_aware_count(&roots);
             (dag, roots, ops)
         })
         .min_by_key(|(_, _, ops)| *ops)

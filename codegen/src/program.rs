@@ -189,7 +189,7 @@ impl Dag {
     pub fn product2(&mut self, a: NodeId, b: NodeId) -> NodeId {
         match (self.constant_value(a), self.constant_value(b)) {
             (Some(x), Some(y)) => return self.constant(x * y),
-            (Some(0.0), _) | (_, Some(0.0)) => return self.constant(0.0),
+            (Some(x), _) | (_, Some(x)) if x == 0.0 => return self.constant(0.0),
             (Some(1.0), _) => return b,
             (_, Some(1.0)) => return a,
             (Some(-1.0), _) => return self.negate(b),
@@ -212,11 +212,17 @@ impl Dag {
         self.intern(Node::Mul(operands))
     }
 
-    /// `-a`, folding constants and double negations.
+    /// `-a`, folding constants and double negations; `-(k * x)` becomes
+    /// `(-k) * x`, no separate negation.
     pub fn negate(&mut self, a: NodeId) -> NodeId {
-        match self.nodes[a] {
+        match &self.nodes[a] {
             Node::Const(c) => self.constant(-c),
-            Node::Neg(x) => x,
+            Node::Neg(x) => *x,
+            Node::Mul(ops) if ops.len() == 2 && self.constant_value(ops[0]).is_some() => {
+                let (c, x) = (ops[0], ops[1]);
+                let minus = self.negate(c);
+                self.intern(Node::Mul(vec![minus, x]))
+            }
             _ => self.intern(Node::Neg(a)),
         }
     }
@@ -307,6 +313,43 @@ impl Dag {
         }
         count
     }
+
+    /// `operation_count` with negations that only feed sums left out: the
+    /// emitter writes `a + (-b)` as `a - b`.
+    pub fn negation_aware_count(&self, roots: &[NodeId]) -> usize {
+        let reachable = self.reachable(roots);
+        let mut free = vec![true; self.nodes.len()];
+        for &r in roots {
+            free[r] = false;
+        }
+        for id in (0..self.nodes.len()).filter(|&id| reachable[id]) {
+            match &self.nodes[id] {
+                Node::Mul(ops) => ops.iter().for_each(|&o| free[o] = false),
+                Node::Neg(x) => free[*x] = false,
+                _ => {}
+            }
+        }
+        let free_negations = (0..self.nodes.len())
+            .filter(|&id| reachable[id] && free[id] && matches!(self.nodes[id], Node::Neg(_)))
+            .count();
+        self.operation_count(roots) - free_negations
+    }
+
+    fn reachable(&self, roots: &[NodeId]) -> Vec<bool> {
+        let mut seen = vec![false; self.nodes.len()];
+        let mut stack: Vec<NodeId> = roots.to_vec();
+        while let Some(id) = stack.pop() {
+            if std::mem::replace(&mut seen[id], true) {
+                continue;
+            }
+            match &self.nodes[id] {
+                Node::Add(ops) | Node::Mul(ops) => stack.extend(ops),
+                Node::Neg(n) => stack.push(*n),
+                Node::Input(_) | Node::Const(_) => {}
+            }
+        }
+        seen
+    }
 }
 
 #[cfg(test)]
@@ -350,6 +393,22 @@ mod tests {
         for x in [[0.3, -1.2, 2.0], [1.5, 0.1, -0.7]] {
             assert!((eval(&dag, root, &x) - eval_poly(&p, &x)).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn negations_fold_into_constants_and_subtractions_are_free() {
+        let mut dag = Dag::default();
+        let (a, b) = (dag.input(0), dag.input(1));
+        let k = dag.constant(2.5);
+        let scaled = dag.product2(k, b);
+        let minus = dag.negate(scaled);
+        let minus_k = dag.constant(-2.5);
+        assert_eq!(dag.nodes[minus], Node::Mul(vec![minus_k, b]));
+        let nb = dag.negate(b);
+        let difference = dag.sum2(a, nb);
+        assert_eq!(dag.operation_count(&[difference]), 2);
+        assert_eq!(dag.negation_aware_count(&[difference]), 1);
+        assert_eq!(dag.negation_aware_count(&[nb]), 1);
     }
 
     #[test]

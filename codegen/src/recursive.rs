@@ -48,6 +48,9 @@ pub struct Traced {
     pub regressor: Vec<NodeId>,
 }
 
+/// A joint rotation as a product of stages (rows each), parent-most first.
+struct Rotation(Vec<[V3; 3]>);
+
 /// Motion of one body frame, in its own axes.
 #[derive(Clone, Copy)]
 struct Motion {
@@ -79,7 +82,7 @@ pub fn trace(chain: &Chain) -> Traced {
         chain,
     };
     let n = chain.bodies.len();
-    let rotations: Vec<[V3; 3]> = (0..n).map(|i| t.rotation(i)).collect();
+    let rotations: Vec<Rotation> = (0..n).map(|i| t.rotation(i)).collect();
     let zero = t.dag.constant(0.0);
     let gravity_off = [zero; 3];
     let base_acceleration = t.constants(&(-chain.gravity));
@@ -151,27 +154,73 @@ impl<'a> Tracer<'a> {
         &self.chain.bodies[i]
     }
 
-    /// Rows of R_i = R_fixed Rot(axis, q_i) = K0 + K1 sin + K2 cos, with
-    /// K0 = R_fixed z z^T, K1 = R_fixed [z]x, K2 = R_fixed (1 - z z^T).
-    fn rotation(&mut self, i: usize) -> [V3; 3] {
+    /// R_i = R_fixed Rot(axis, q_i), as one matrix or in two stages,
+    /// whichever costs fewer operations per rotated vector: a signed
+    /// permutation or a rotation about a coordinate axis as R_fixed makes
+    /// the stages nearly free, a dense R_fixed favours one matrix.
+    fn rotation(&mut self, i: usize) -> Rotation {
+        let mut scratch = Tracer {
+            dag: Dag::default(),
+            chain: self.chain,
+        };
+        let [one, staged] = [false, true].map(|stage| {
+            let rotation = scratch.rotation_in(i, stage);
+            let v = [1, 2, 3].map(|k| scratch.dag.input(usize::MAX - k));
+            let rotated = scratch.in_body_axes(&rotation, v);
+            scratch.dag.operation_count(&rotated)
+        });
+        self.rotation_in(i, staged < one)
+    }
+
+    fn rotation_in(&mut self, i: usize, staged: bool) -> Rotation {
         let body = self.body(i);
         let z = body.axis;
         let zz = z * z.transpose();
         let skew = Matrix3::new(0.0, -z.z, z.y, z.z, 0.0, -z.x, -z.y, z.x, 0.0);
-        let k0 = body.rotation * zz;
-        let k1 = body.rotation * skew;
-        let k2 = body.rotation * (Matrix3::identity() - zz);
+        // Rot(axis, q) = K0 + K1 sin + K2 cos.
+        let k = [zz, skew, Matrix3::identity() - zz];
+        let fixed = body.rotation;
+        if staged {
+            let zero = Matrix3::zeros();
+            let fixed = self.rows(i, [fixed, zero, zero]);
+            let joint = self.rows(i, k);
+            Rotation(vec![fixed, joint])
+        } else {
+            let combined = self.rows(i, k.map(|k| fixed * k));
+            Rotation(vec![combined])
+        }
+    }
+
+    /// Rows of K0 + K1 sin(q_i) + K2 cos(q_i).
+    fn rows(&mut self, i: usize, k: [Matrix3<f64>; 3]) -> [V3; 3] {
         let (s, c) = (self.input(i, SIN), self.input(i, COS));
         [0, 1, 2].map(|r| {
             [0, 1, 2].map(|col| {
                 let terms = [
-                    self.constant(k0[(r, col)]),
-                    self.scaled(k1[(r, col)], s),
-                    self.scaled(k2[(r, col)], c),
+                    self.constant(k[0][(r, col)]),
+                    self.scaled(k[1][(r, col)], s),
+                    self.scaled(k[2][(r, col)], c),
                 ];
                 self.sum(&terms)
             })
         })
+    }
+
+    /// R^T v: from the parent's axes into the body's.
+    fn in_body_axes(&mut self, rotation: &Rotation, v: V3) -> V3 {
+        rotation
+            .0
+            .iter()
+            .fold(v, |v, stage| self.inverse_rotate(stage, v))
+    }
+
+    /// R v: from the body's axes into the parent's.
+    fn in_parent_axes(&mut self, rotation: &Rotation, v: V3) -> V3 {
+        rotation
+            .0
+            .iter()
+            .rev()
+            .fold(v, |v, stage| self.mat_vec(stage, v))
     }
 
     fn scaled(&mut self, k: f64, x: NodeId) -> NodeId {
@@ -210,7 +259,7 @@ impl<'a> Tracer<'a> {
         [0, 1, 2].map(|r| self.dot(rows[r], v))
     }
 
-    /// R^T v: from the parent's axes into the body's.
+    /// M^T v for the rows of M.
     fn inverse_rotate(&mut self, rows: &[V3; 3], v: V3) -> V3 {
         let columns = [0, 1, 2].map(|c| [rows[0][c], rows[1][c], rows[2][c]]);
         self.mat_vec(&columns, v)
@@ -230,7 +279,7 @@ impl<'a> Tracer<'a> {
     }
 
     /// Velocities and accelerations outwards from the base.
-    fn forward(&mut self, rotations: &[[V3; 3]], state: &[JointState], base: V3) -> Vec<Motion> {
+    fn forward(&mut self, rotations: &[Rotation], state: &[JointState], base: V3) -> Vec<Motion> {
         let zero = self.dag.constant(0.0);
         let mut parent = Motion {
             w: [zero; 3],
@@ -244,9 +293,9 @@ impl<'a> Tracer<'a> {
             // Acceleration of the joint origin, parent axes.
             let relative = self.point_acceleration(&parent, p);
             let a = self.add(parent.a, relative);
-            let a = self.inverse_rotate(&rotations[i], a);
-            let w_in = self.inverse_rotate(&rotations[i], parent.w);
-            let wd_in = self.inverse_rotate(&rotations[i], parent.wd);
+            let a = self.in_body_axes(&rotations[i], a);
+            let w_in = self.in_body_axes(&rotations[i], parent.w);
+            let wd_in = self.in_body_axes(&rotations[i], parent.wd);
             let spin = self.scale(z, s.qd);
             let w = self.add(w_in, spin);
             let transport = self.cross(w_in, spin);
@@ -260,12 +309,18 @@ impl<'a> Tracer<'a> {
     }
 
     /// wd x r + w x (w x r) = U r, the acceleration of a body point at r
-    /// relative to the origin. U = [wd]x + w w^T - |w|^2 1 is built once per
-    /// body (hash-consed) and serves the wrench and the child's origin.
+    /// relative to the origin.
     fn point_acceleration(&mut self, motion: &Motion, r: V3) -> V3 {
+        let u = self.spin_matrix(motion);
+        self.mat_vec(&u, r)
+    }
+
+    /// U = [wd]x + w w^T - |w|^2 1, built once per body (hash-consed): it
+    /// serves the force, the moment and the child's origin acceleration.
+    fn spin_matrix(&mut self, motion: &Motion) -> [V3; 3] {
         let (w, wd) = (motion.w, motion.wd);
-        let ww = [0, 1, 2].map(|i| [0, 1, 2].map(|j| self.dag.product2(w[i.min(j)], w[i.max(j)])));
-        let u: [V3; 3] = [0, 1, 2].map(|i| {
+        let ww = self.squares(w);
+        [0, 1, 2].map(|i| {
             [0, 1, 2].map(|j| {
                 if i == j {
                     let (k, l) = ((i + 1) % 3, (i + 2) % 3);
@@ -282,37 +337,73 @@ impl<'a> Tracer<'a> {
                     self.dag.sum2(ww[i][j], spin)
                 }
             })
-        });
-        self.mat_vec(&u, r)
+        })
+    }
+
+    /// w w^T, each product once.
+    fn squares(&mut self, w: V3) -> [V3; 3] {
+        [0, 1, 2].map(|i| [0, 1, 2].map(|j| self.dag.product2(w[i.min(j)], w[i.max(j)])))
     }
 
     /// The wrench (force, moment about the origin) body `i` needs for its
-    /// motion: Newton-Euler about a body-fixed point.
+    /// motion. Its points accelerate by a + U r, so with the first and
+    /// second moments h and P = int r r^T dm (P = tr(I)/2 - I):
+    /// f = m a + U h and n = h x a + int r x U r dm = h x a + axial(U P),
+    /// axial(X)_i = X_kj - X_jk for (i, j, k) cyclic. This reuses U instead
+    /// of forming I wd, I w and w x I w; its diagonal enters only as
+    /// U_kk - U_jj = w_k^2 - w_j^2, and U_kj P_jj - U_jk P_kk as
+    /// w_j w_k (P_jj - P_kk) + wd_i (P_jj + P_kk), which folds when w or wd
+    /// has zero components (bodies near the base).
     fn wrench(&mut self, i: usize, motion: &Motion) -> (V3, V3) {
-        let Inertia { m, h, i: inertia } = self.inertia(i);
+        let (m, h, p) = self.moments(i);
+        let u = self.spin_matrix(motion);
         let ma = self.scale(motion.a, m);
-        let uh = self.point_acceleration(motion, h);
+        let uh = self.mat_vec(&u, h);
         let force = self.add(ma, uh);
-        let iwd = self.mat_vec(&inertia, motion.wd);
-        let iw = self.mat_vec(&inertia, motion.w);
-        let gyroscopic = self.cross(motion.w, iw);
+        let ww = self.squares(motion.w);
         let hxa = self.cross(h, motion.a);
-        let moment = self.add(iwd, gyroscopic);
-        let moment = self.add(moment, hxa);
+        let moment = [0, 1, 2].map(|i| {
+            let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+            let minus = self.dag.negate(ww[j][j]);
+            let diagonal = self.dag.sum2(ww[k][k], minus);
+            let products = [
+                (diagonal, p[(j, k)]),
+                (ww[j][k], p[(j, j)] - p[(k, k)]),
+                (motion.wd[i], p[(j, j)] + p[(k, k)]),
+                (u[k][i], p[(i, j)]),
+                (u[j][i], -p[(i, k)]),
+            ]
+            .map(|(x, c)| {
+                // Inertial numbers stay unsnapped, like `inertia`.
+                let c = self.dag.constant(c);
+                self.dag.product2(c, x)
+            });
+            let sum = self.sum(&products);
+            self.dag.sum2(sum, hxa[i])
+        });
         (force, moment)
     }
 
+    /// Mass, first moment and second moment P = int r r^T dm of body `i`
+    /// about its origin, the latter as numbers.
+    fn moments(&mut self, i: usize) -> (NodeId, V3, Matrix3<f64>) {
+        let [m, hx, hy, hz, xx, xy, yy, xz, yz, zz] = self.body(i).inertial.standard_parameters();
+        let inertia = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+        let p = Matrix3::identity() * (inertia.trace() / 2.0) - inertia;
+        let h = [hx, hy, hz].map(|x| self.dag.constant(x));
+        (self.dag.constant(m), h, p)
+    }
+
     /// Wrenches inwards from the tip; each joint takes its axis component.
-    fn backward(&mut self, rotations: &[[V3; 3]], motions: &[Motion]) -> Vec<NodeId> {
+    fn backward(&mut self, rotations: &[Rotation], motions: &[Motion]) -> Vec<NodeId> {
         let n = motions.len();
         let mut tau = vec![0; n];
         let mut outer: Option<(V3, V3)> = None;
         for i in (0..n).rev() {
             let (mut force, mut moment) = self.wrench(i, &motions[i]);
             if let Some((f, m)) = outer {
-                let child = &rotations[i + 1];
-                let f = self.mat_vec(child, f);
-                let m = self.mat_vec(child, m);
+                let f = self.in_parent_axes(&rotations[i + 1], f);
+                let m = self.in_parent_axes(&rotations[i + 1], m);
                 let p = self.constants(&self.body(i + 1).translation);
                 let lever = self.cross(p, f);
                 force = self.add(force, f);
@@ -343,19 +434,19 @@ impl<'a> Tracer<'a> {
 
     /// `twists[k][j]`, j <= k: the unit twist of joint j in body k's axes,
     /// (angular, linear velocity of body k's origin).
-    fn twists(&mut self, rotations: &[[V3; 3]]) -> Vec<Vec<(V3, V3)>> {
+    fn twists(&mut self, rotations: &[Rotation]) -> Vec<Vec<(V3, V3)>> {
         let n = rotations.len();
         let zero = self.dag.constant(0.0);
         let mut twists: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
         for (k, rotation) in rotations.iter().enumerate() {
             let p = self.constants(&self.body(k).translation);
             let mut row = Vec::with_capacity(k + 1);
-            for &(w, v) in twists.last().map_or(&[][..], Vec::as_slice) {
+            for &(w, v) in twists.last().into_iter().flatten() {
                 let wxp = self.cross(w, p);
                 let v = self.add(v, wxp);
                 row.push((
-                    self.inverse_rotate(rotation, w),
-                    self.inverse_rotate(rotation, v),
+                    self.in_body_axes(rotation, w),
+                    self.in_body_axes(rotation, v),
                 ));
             }
             row.push((self.constants(&self.body(k).axis), [zero; 3]));
@@ -522,6 +613,133 @@ mod tests {
         ]
     }
 
+    /// A plain numeric recursive Newton-Euler for per-body standard
+    /// parameters (no joint effects), the reference for the traced programs.
+    fn rnea(
+        chain: &Chain,
+        params: &[[f64; 10]],
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        g: bool,
+    ) -> Vec<f64> {
+        type V = Vector3<f64>;
+        let n = chain.bodies.len();
+        let (mut w, mut wd) = (V::zeros(), V::zeros());
+        let mut a = if g { -chain.gravity } else { V::zeros() };
+        let mut frames = Vec::new();
+        let mut wrenches = Vec::new();
+        for (i, body) in chain.bodies.iter().enumerate() {
+            let r = body.rotation * crate::reduce::axis_angle(&body.axis, q[i]);
+            let z = body.axis;
+            a = r.transpose()
+                * (a + wd.cross(&body.translation) + w.cross(&w.cross(&body.translation)));
+            let w_in = r.transpose() * w;
+            w = w_in + z * qd[i];
+            wd = r.transpose() * wd + z * qdd[i] + w_in.cross(&(z * qd[i]));
+            let [m, hx, hy, hz, xx, xy, yy, xz, yz, zz] = params[i];
+            let h = V::new(hx, hy, hz);
+            let inertia = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+            let force = m * a + wd.cross(&h) + w.cross(&w.cross(&h));
+            let moment = inertia * wd + w.cross(&(inertia * w)) + h.cross(&a);
+            frames.push(r);
+            wrenches.push((force, moment));
+        }
+        let mut tau = vec![0.0; n];
+        for i in (0..n).rev() {
+            if i + 1 < n {
+                let (f, m) = wrenches[i + 1];
+                let (f, m) = (frames[i + 1] * f, frames[i + 1] * m);
+                let p = chain.bodies[i + 1].translation;
+                wrenches[i].0 += f;
+                wrenches[i].1 += m + p.cross(&f);
+            }
+            tau[i] = chain.bodies[i].axis.dot(&wrenches[i].1);
+        }
+        tau
+    }
+
+    /// A deterministic pseudo-random number in [-1, 1).
+    fn uniform(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    fn assert_close(what: &str, got: &[f64], want: &[f64]) {
+        let scale = want.iter().fold(1.0_f64, |s, x| s.max(x.abs()));
+        for (k, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() <= 1e-12 * scale, "{what}[{k}]: {g} vs {w}");
+        }
+    }
+
+    /// Every traced function against the numeric reference, on random states.
+    fn check_against_reference(model: &str, samples: usize) {
+        let path = format!("{}/../models/{model}.toml", env!("CARGO_MANIFEST_DIR"));
+        let description = Description::load(&path).unwrap();
+        let chain = description.chain();
+        let traced = trace(chain);
+        let n = chain.bodies.len();
+        let params: Vec<[f64; 10]> = chain
+            .bodies
+            .iter()
+            .map(|b| b.inertial.standard_parameters())
+            .collect();
+        let effects: Vec<_> = chain.bodies.iter().map(|b| b.effects).collect();
+        let mut state = 7;
+        for sample in 0..samples {
+            let mut random =
+                |scale: f64| -> Vec<f64> { (0..n).map(|_| scale * uniform(&mut state)).collect() };
+            let (q, qd, qdd) = (random(std::f64::consts::PI), random(3.0), random(10.0));
+            let x = inputs(&q, &qd, &qdd);
+            let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
+            let zeros = vec![0.0; n];
+            let mut tau = rnea(chain, &params, &q, &qd, &qdd, true);
+            for (i, e) in effects.iter().enumerate() {
+                tau[i] +=
+                    e.armature * qdd[i] + e.viscous * qd[i] + e.coulomb * qd[i].signum() + e.offset;
+            }
+            assert_close("tau", &eval(&traced.tau), &tau);
+            let gravity = rnea(chain, &params, &q, &zeros, &zeros, true);
+            assert_close("gravity", &eval(&traced.gravity), &gravity);
+            let coriolis = rnea(chain, &params, &q, &qd, &zeros, false);
+            assert_close("coriolis", &eval(&traced.coriolis), &coriolis);
+            if sample % 10 != 0 {
+                continue;
+            }
+            let mut mass = vec![0.0; n * n];
+            for j in 0..n {
+                let mut unit = zeros.clone();
+                unit[j] = 1.0;
+                let column = rnea(chain, &params, &q, &zeros, &unit, false);
+                for i in 0..n {
+                    mass[i * n + j] = column[i] + if i == j { effects[i].armature } else { 0.0 };
+                }
+            }
+            assert_close("mass_matrix", &eval(&traced.mass_matrix), &mass);
+            let y = eval(&traced.regressor);
+            for (k, p) in (0..n).flat_map(|k| (0..10).map(move |p| (k, p))) {
+                let mut unit = vec![[0.0; 10]; n];
+                unit[k][p] = 1.0;
+                let column = rnea(chain, &unit, &q, &qd, &qdd, true);
+                let got: Vec<f64> = (0..n).map(|i| y[i * 14 * n + 10 * k + p]).collect();
+                assert_close("regressor", &got, &column);
+            }
+        }
+    }
+
+    #[test]
+    fn panda_matches_the_numeric_reference() {
+        check_against_reference("panda", 1000);
+    }
+
+    #[test]
+    fn gen3_lite_matches_the_numeric_reference() {
+        check_against_reference("kinova_gen3_lite", 1000);
+        check_against_reference("kinova_gen3_lite_3dof", 1000);
+    }
+
     #[test]
     fn planar_arm_matches_its_closed_form() {
         let description = Description::parse(PLANAR, "planar", Path::new("planar.toml")).unwrap();
@@ -574,5 +792,35 @@ mod tests {
             assert!((tau[i] - regressed).abs() < 1e-12);
         }
         assert_eq!(m[1], m[2]);
+    }
+}
+
+#[cfg(test)]
+mod stats {
+    use super::*;
+    use crate::description::Description;
+
+    /// `cargo test --release --no-default-features -- --ignored --nocapture`:
+    /// operation counts (plain, negation-aware) of the shipped models.
+    #[test]
+    #[ignore]
+    fn print_operation_counts() {
+        for model in ["panda", "kinova_gen3_lite", "kinova_gen3_lite_3dof"] {
+            let path = format!("{}/../models/{model}.toml", env!("CARGO_MANIFEST_DIR"));
+            let t = trace(Description::load(&path).unwrap().chain());
+            for (name, roots) in [
+                ("tau", &t.tau),
+                ("mass_matrix", &t.mass_matrix),
+                ("coriolis", &t.coriolis),
+                ("gravity", &t.gravity),
+                ("regressor", &t.regressor),
+            ] {
+                let (plain, aware) = (
+                    t.dag.operation_count(roots),
+                    t.dag.negation_aware_count(roots),
+                );
+                println!("COUNT {model} {name} {plain} {aware}");
+            }
+        }
     }
 }
