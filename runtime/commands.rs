@@ -599,9 +599,11 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
                 println!("no significant missing effect found");
             }
             for e in &report.effects {
-                let joint = e
-                    .joint
-                    .map_or("last link".to_string(), |j| format!("joint {j}"));
+                let joint = match (e.joint, &e.link) {
+                    (Some(j), _) => format!("joint {j}"),
+                    (None, Some(link)) => format!("link `{link}`"),
+                    (None, None) => "the last link".to_string(),
+                };
                 let whose = if e.joint.is_some() {
                     "its joint's"
                 } else {
