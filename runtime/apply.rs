@@ -56,19 +56,45 @@ pub fn apply_to_text(
                     .link
                     .as_deref()
                     .context("inertial error without a link")?;
-                let mass = value("mass").context("inertial error without mass")?;
                 let nominal_mass = value("nominal_mass").context("missing nominal_mass")?;
                 let nominal_com = vector(&effect.parameters, "nominal_com")?;
                 let nominal_com: Vec<f64> = nominal_com
                     .iter()
                     .map(|c| c.context("nominal_com must be numbers"))
                     .collect::<Result<_>>()?;
-                // A component the data did not determine stays as modelled.
-                let com: Vec<f64> = vector(&effect.parameters, "com")?
-                    .iter()
-                    .zip(&nominal_com)
-                    .map(|(c, n)| c.unwrap_or(*n))
-                    .collect();
+                let (mass, com) = match value("mass") {
+                    Some(mass) => {
+                        // A component the data did not determine stays as modelled.
+                        let com: Vec<f64> = vector(&effect.parameters, "com")?
+                            .iter()
+                            .zip(&nominal_com)
+                            .map(|(c, n)| c.unwrap_or(*n))
+                            .collect();
+                        (mass, com)
+                    }
+                    // The mass was not identifiable: never change it. The
+                    // diagnosis fitted the first moment with the mass as
+                    // modelled, so the COM moves to first_moment / mass
+                    // (a null component stays as modelled).
+                    None => {
+                        let moment =
+                            vector(&effect.parameters, "first_moment").with_context(|| {
+                                format!(
+                                    "link `{link}`: the diagnosis gives neither a mass nor a first \
+                                 moment"
+                                )
+                            })?;
+                        if !nominal_mass.is_finite() || nominal_mass <= 0.0 {
+                            bail!("link `{link}`: no positive modelled mass to hold");
+                        }
+                        let com = moment
+                            .iter()
+                            .zip(&nominal_com)
+                            .map(|(h, n)| h.map_or(*n, |h| h / nominal_mass))
+                            .collect();
+                        (nominal_mass, com)
+                    }
+                };
                 correct_link(&mut doc, link, mass, &com, nominal_mass, &nominal_com)?;
             }
             (kind, Some(joint)) => {
@@ -172,9 +198,7 @@ fn correct_link(
         bail!("link `{link}`: the corrected mass {new_mass} kg is not positive");
     }
     let new_com: Vec<f64> = (0..3)
-        .map(|k| {
-            (own_mass * own_com[k] + mass * com[k] - nominal_mass * nominal_com[k]) / new_mass
-        })
+        .map(|k| (own_mass * own_com[k] + mass * com[k] - nominal_mass * nominal_com[k]) / new_mass)
         .collect();
     set_keeping_decor(table, "mass", Value::from(new_mass));
     set_keeping_decor(
@@ -350,6 +374,48 @@ mod tests {
             "{out}"
         );
         codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+    }
+
+    const ARM: &str = "[[links]]\nname = \"base\"\n\n[[links]]\nname = \"a\"\nmass = 1.0 # measured\ncom = [0.0, 0.0, 0.1]\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[links]]\nname = \"b\"\nmass = 0.5\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[joints]]\nname = \"j1\"\ntype = \"revolute\"\nparent = \"base\"\nchild = \"a\"\n\n[[joints]]\nname = \"j2\"\ntype = \"revolute\"\nparent = \"a\"\nchild = \"b\"\norigin = { xyz = [0.0, 0.0, 0.2] }\naxis = [0.0, 1.0, 0.0]\n";
+
+    fn link_error(params: serde_json::Value) -> Diagnosis {
+        let mut e = effect(Kind::InertialError, None, params);
+        e.link = Some("a".into());
+        diagnosis(vec![e])
+    }
+
+    #[test]
+    fn inertial_error_corrects_the_links_mass_and_com() {
+        let d = link_error(serde_json::json!({
+            "mass": 1.2, "com": [0.02, null, 0.12],
+            "nominal_mass": 1.0, "nominal_com": [0.0, 0.0, 0.1]
+        }));
+        let out = apply_to_text(ARM, &d, &["j1", "j2"], "b").unwrap();
+        assert!(out.contains("# measured"), "{out}");
+        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+        let body = &parsed.chain().bodies[0].inertial;
+        assert!((body.mass - 1.2).abs() < 1e-12, "{out}");
+        // The null y component stays as modelled.
+        let com = body.standard_parameters();
+        for (k, c) in [0.02, 0.0, 0.12].iter().enumerate() {
+            assert!((com[1 + k] / com[0] - c).abs() < 1e-12, "com[{k}]: {out}");
+        }
+    }
+
+    #[test]
+    fn an_unidentifiable_mass_is_kept_and_the_first_moment_moves_the_com() {
+        let d = link_error(serde_json::json!({
+            "mass": null, "com": [null, null, null],
+            "first_moment": [0.03, null, 0.15],
+            "nominal_mass": 1.0, "nominal_com": [0.0, 0.0, 0.1]
+        }));
+        let out = apply_to_text(ARM, &d, &["j1", "j2"], "b").unwrap();
+        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+        let p = parsed.chain().bodies[0].inertial.standard_parameters();
+        assert!((p[0] - 1.0).abs() < 1e-12, "mass changed: {out}");
+        for (k, h) in [0.03, 0.0, 0.15].iter().enumerate() {
+            assert!((p[1 + k] - h).abs() < 1e-12, "m*c[{k}]: {out}");
+        }
     }
 
     #[test]

@@ -28,6 +28,23 @@
 //!   modelled. Standard parameters [m', m'c', I_C + m'(|c'|^2 E - c'c'^T)]
 //!   minus the model's; reported as the corrected mass and COM.
 //!
+//! A link's mass is identifiable from torques only through the acceleration
+//! of the link's origin (its mass column in the regressor); its first
+//! moment m*c and inertia have their own columns. When the origin lies on
+//! the axes of every joint that moves the link (link 2 of the 3-DOF Kinova:
+//! on both the joint-1 and joint-2 axes), that column vanishes and a fitted
+//! mass would come only from the parallel-axis terms of the assumed inertia
+//! about the COM. Rule ([`mass_identifiable`]): with the mass put in the
+//! first moments' units by the arm's size, the mass is identifiable when the
+//! information left about it once the link's first moments are projected
+//! out is at least [`COLLINEAR`] times the largest eigenvalue of the link's
+//! (mass, first moment) information. When it is not, the candidate fits the
+//! first moment h = m*c alone (the mass held as modelled, the inertia about
+//! the COM as modelled) and reports `first_moment` (kg m, with 95% CIs),
+//! `mass` and `com` as `null` and a note saying why; `--apply` then keeps
+//! the mass and moves the COM to h / (modelled mass), the assumption the
+//! note states, and never changes the mass.
+//!
 //! Naming rule on the last link: an added point mass and a heavier last link
 //! change the same mass and first-moment columns (they differ only in
 //! second moments, which these data barely separate), so the last link gets
@@ -176,6 +193,15 @@ enum Shape {
         base_mass: f64,
         base_moment: Vector3<f64>,
     },
+    /// theta = the first moment h = m c of a link whose mass the data cannot
+    /// identify (see [`mass_identifiable`]), the mass held at the model's
+    /// `base_mass`: coefficients point_mass(base_mass, h / base_mass) +
+    /// `offset`, the inertia about the COM as modelled.
+    Moment {
+        offset: [f64; 10],
+        base_mass: f64,
+        base_moment: Vector3<f64>,
+    },
 }
 
 impl Shape {
@@ -183,6 +209,7 @@ impl Shape {
         match self {
             Shape::Linear => columns,
             Shape::Body { .. } => 4,
+            Shape::Moment { .. } => 3,
         }
     }
 
@@ -209,6 +236,23 @@ impl Shape {
                         jacobian[(k, a + 1)] = m * row[k];
                     }
                 }
+                (coefficients, jacobian)
+            }
+            Shape::Moment {
+                offset, base_mass, ..
+            } => {
+                let m = *base_mass;
+                let c = Vector3::new(theta[0], theta[1], theta[2]) / m;
+                let unit = point_mass(1.0, &c);
+                let coefficients = (0..10).map(|k| m * unit[k] + offset[k]).collect();
+                // d(m unit(h / m)) / dh = d unit / dc.
+                let (x, y, z) = (c.x, c.y, c.z);
+                let partial = [
+                    [0.0, 1.0, 0.0, 0.0, 0.0, -y, 2.0 * x, -z, 0.0, 2.0 * x],
+                    [0.0, 0.0, 1.0, 0.0, 2.0 * y, -x, 0.0, 0.0, -z, 2.0 * y],
+                    [0.0, 0.0, 0.0, 1.0, 2.0 * z, 0.0, 2.0 * z, -x, -y, 0.0],
+                ];
+                let jacobian = DMatrix::from_fn(10, 3, |k, a| partial[a][k]);
                 (coefficients, jacobian)
             }
         }
@@ -314,14 +358,32 @@ pub fn diagnose(
         );
     }
     reject_duplicates(trajectories)?;
-    let (data, candidates) = stack(model, trajectories)?;
-    let moments = Moments::new(&data, &candidates);
-    let (selected, mut notes) = select(&moments, data.dof, &candidates, settings);
-    let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
-    let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let size = Some(reach(model))
         .filter(|r| r.is_finite() && *r > 0.0)
         .unwrap_or(1.0);
+    let (data, mut candidates) = stack(model, trajectories)?;
+    let moments = Moments::new(&data, &candidates);
+    let massless: Vec<usize> = (0..candidates.len())
+        .filter(|&c| !mass_identifiable(&moments, &candidates, c, size))
+        .collect();
+    for c in massless {
+        if let Shape::Body {
+            offset,
+            base_mass,
+            base_moment,
+        } = candidates[c].shape
+        {
+            candidates[c].shape = Shape::Moment {
+                offset,
+                base_mass,
+                base_moment,
+            };
+            candidates[c].names = vec!["mx", "my", "mz"];
+        }
+    }
+    let (selected, mut notes) = select(&moments, data.dof, &candidates, settings);
+    let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
+    let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let effects = describe(
         &moments,
         &candidates,
@@ -343,6 +405,41 @@ pub fn diagnose(
         effects,
         notes,
     })
+}
+
+/// Whether the data identify the mass of an `inertial_error` candidate's
+/// link from its own regressor column, i.e. from the acceleration of the
+/// link's origin (true for every other candidate). The mass is put in the
+/// first moments' units by the arm's size `lever` (a mass change dm acts
+/// like a first-moment change of dm * lever), which makes the link's 4x4
+/// information matrix of (mass, first moment) dimensionally consistent; the
+/// mass is identifiable when its information left once the first moments
+/// are projected out (the Schur complement) is at least [`COLLINEAR`] times
+/// that matrix's largest eigenvalue. A link whose origin lies on the axes of
+/// all joints that move it has a zero mass column: its mass enters the
+/// torques only through the parallel-axis terms of an assumed inertia about
+/// the COM, which the data do not check.
+fn mass_identifiable(m: &Moments, candidates: &[Candidate], c: usize, lever: f64) -> bool {
+    let candidate = &candidates[c];
+    if candidate.kind != Kind::InertialError
+        || !matches!(candidate.shape, Shape::Body { base_mass, .. } if base_mass > 0.0)
+    {
+        return true;
+    }
+    let columns: Vec<usize> = columns_of(candidates, &[c]).into_iter().take(4).collect();
+    let (mut a, _) = m.normal_equations(&columns, |_| true);
+    for k in 0..4 {
+        a[(0, k)] /= lever;
+        a[(k, 0)] /= lever;
+    }
+    let largest = a.symmetric_eigenvalues().max();
+    if largest <= 0.0 {
+        return false;
+    }
+    let h = a.view((1, 1), (3, 3)).into_owned();
+    let coupling = a.view((1, 0), (3, 1)).column(0).into_owned();
+    let schur = a[(0, 0)] - coupling.dot(&pseudo_solve(&h, &coupling));
+    schur >= COLLINEAR * largest
 }
 
 /// The same recording passed twice would leak into its own held-out fold.
@@ -483,7 +580,11 @@ fn candidates(
                 base_moment: Vector3::zeros(),
             }
         } else {
-            let com = if mass > 0.0 { moment / mass } else { Vector3::zeros() };
+            let com = if mass > 0.0 {
+                moment / mass
+            } else {
+                Vector3::zeros()
+            };
             Shape::Body {
                 offset: point_mass(-mass, &com),
                 base_mass: mass,
@@ -561,7 +662,9 @@ fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
     let rhs = DVector::from_fn(k, |i, _| g[i] / d[i]);
     let svd = scaled.svd(true, true);
     let tolerance = 1e-12 * svd.singular_values.max().max(f64::MIN_POSITIVE);
-    let x = svd.solve(&rhs, tolerance).unwrap_or_else(|_| DVector::zeros(k));
+    let x = svd
+        .solve(&rhs, tolerance)
+        .unwrap_or_else(|_| DVector::zeros(k));
     DVector::from_fn(k, |i, _| x[i] / d[i])
 }
 
@@ -583,7 +686,9 @@ fn coefficients(
         for (k, v) in values.iter().enumerate() {
             coefficients[row + k] = *v;
         }
-        jacobian.view_mut((row, col), (values.len(), w)).copy_from(&d);
+        jacobian
+            .view_mut((row, col), (values.len(), w))
+            .copy_from(&d);
         row += values.len();
         col += w;
     }
@@ -608,11 +713,13 @@ fn fit(
     let mut start_columns = Vec::new();
     let mut at = 0;
     for &c in selected {
-        let count = match candidates[c].shape {
-            Shape::Linear => candidates[c].columns.len(),
-            Shape::Body { .. } => 4,
-        };
-        start_columns.extend(at..at + count);
+        match candidates[c].shape {
+            Shape::Linear => start_columns.extend(at..at + candidates[c].columns.len()),
+            Shape::Body { .. } => start_columns.extend(at..at + 4),
+            // The mass column carries no information (that is why the shape
+            // was chosen): start from the first-moment columns alone.
+            Shape::Moment { .. } => start_columns.extend(at + 1..at + 4),
+        }
         at += candidates[c].columns.len();
     }
     let a0 = a.select_rows(&start_columns).select_columns(&start_columns);
@@ -641,6 +748,10 @@ fn fit(
                 theta.extend([mass, com.x, com.y, com.z]);
                 at += 4;
             }
+            Shape::Moment { base_moment, .. } => {
+                theta.extend((base_moment + Vector3::new(x0[at], x0[at + 1], x0[at + 2])).iter());
+                at += 3;
+            }
         }
     }
     // Second start: every body as modelled (a link's change can be far from
@@ -659,6 +770,10 @@ fn fit(
         {
             let com = base_moment / *base_mass;
             modelled[at..at + 4].copy_from_slice(&[*base_mass, com.x, com.y, com.z]);
+            other_start = true;
+        }
+        if let Shape::Moment { base_moment, .. } = &candidates[c].shape {
+            modelled[at..at + 3].copy_from_slice(base_moment.as_slice());
             other_start = true;
         }
         at += w;
@@ -695,7 +810,7 @@ fn descend(
     };
     let nonlinear = selected
         .iter()
-        .any(|&c| matches!(candidates[c].shape, Shape::Body { .. }));
+        .any(|&c| !matches!(candidates[c].shape, Shape::Linear));
     let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
     let mut value = objective(&coef);
     let mut lambda = 1e-3;
@@ -932,6 +1047,21 @@ fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Res
     let value = values[0];
     let meaning = match candidate.kind {
         Kind::TorqueOffset => return Ok(()),
+        Kind::InertialError if matches!(candidate.shape, Shape::Moment { .. }) => {
+            let Shape::Moment { base_mass, .. } = candidate.shape else {
+                unreachable!("matched above")
+            };
+            let distance = values.iter().map(|h| h * h).sum::<f64>().sqrt() / base_mass;
+            if distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a first moment that puts the centre of mass {distance:.2} m \
+                 from the link origin at the modelled mass {base_mass:.4} kg (the arm's size is \
+                 {reach:.2} m): not a physical body; not named (it would cut a joint's held-out \
+                 MSE by {percent:.0}%)"
+            ));
+        }
         Kind::InertialError => {
             let distance = values[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
             if value > 0.0 && distance <= reach {
@@ -998,7 +1128,12 @@ fn fit_all(
     let k = fit.theta.len();
     let covariance = DMatrix::from_columns(
         &(0..k)
-            .map(|c| pseudo_solve(&fit.information, &DVector::from_fn(k, |r, _| f64::from(r == c))))
+            .map(|c| {
+                pseudo_solve(
+                    &fit.information,
+                    &DVector::from_fn(k, |r, _| f64::from(r == c)),
+                )
+            })
             .collect::<Vec<_>>(),
     );
     let se = DVector::from_fn(k, |i, _| (sigma2 * covariance[(i, i)]).max(0.0).sqrt());
@@ -1043,6 +1178,9 @@ fn significant(
             };
             let nominal = [*base_mass, com.x, com.y, com.z];
             (0..4).any(|k| t(k, nominal[k]) > min_t)
+        }
+        (Kind::InertialError, Shape::Moment { base_moment, .. }) => {
+            (0..3).any(|k| t(k, base_moment[k]) > min_t)
         }
         _ => (0..w).all(|k| t(k, 0.0) > min_t),
     };
@@ -1161,6 +1299,59 @@ fn effect(
                 json!([nominal_com.x, nominal_com.y, nominal_com.z]),
             );
         }
+    } else if let Shape::Moment {
+        base_mass,
+        base_moment,
+        ..
+    } = &candidate.shape
+    {
+        // The first moment is what the data determine; its components are
+        // held to the COM resolution at the modelled mass.
+        let mut moment = Vec::new();
+        let mut interval = Vec::new();
+        for (axis, &(h, dh)) in ["x", "y", "z"].iter().zip(values) {
+            if dh <= resolution * base_mass {
+                moment.push(json!(h));
+                interval.push(json!([h - dh, h + dh]));
+            } else {
+                moment.push(Value::Null);
+                interval.push(Value::Null);
+                notes.push(format!(
+                    "{}: the first moment's {axis} component is not identifiable from these \
+                     data (fit {h:.4} kg m, 95% CI half-width {dh:.4} kg m, a COM uncertainty \
+                     of {:.3} m at the modelled mass > {resolution:.3} m); reported as null and \
+                     kept as modelled by --apply",
+                    label(candidate),
+                    dh / base_mass
+                ));
+            }
+        }
+        notes.push(format!(
+            "{}: the link's mass is not identifiable: its origin does not accelerate in the \
+             recorded motion (it lies on the axes of the joints that move it, so its mass \
+             column in the regressor is negligible against its first-moment columns), so its \
+             mass cannot be told from torques; reported: the first moment m*c (kg m), fitted \
+             with the mass as modelled ({base_mass:.4} kg) and the inertia about the COM as \
+             modelled; mass and com are null; --apply keeps the mass and moves the COM to \
+             first_moment / mass (that assumption)",
+            label(candidate)
+        ));
+        parameters.insert("mass".into(), Value::Null);
+        ci95.insert("mass".into(), Value::Null);
+        parameters.insert("com".into(), json!([null, null, null]));
+        ci95.insert("com".into(), json!([null, null, null]));
+        parameters.insert("first_moment".into(), Value::Array(moment));
+        ci95.insert("first_moment".into(), Value::Array(interval));
+        let nominal_com = base_moment / *base_mass;
+        parameters.insert("nominal_mass".into(), json!(base_mass));
+        parameters.insert(
+            "nominal_com".into(),
+            json!([nominal_com.x, nominal_com.y, nominal_com.z]),
+        );
+        parameters.insert(
+            "nominal_first_moment".into(),
+            json!([base_moment.x, base_moment.y, base_moment.z]),
+        );
     } else {
         for (name, (value, half)) in candidate.names.iter().zip(values) {
             parameters.insert((*name).into(), json!(value));

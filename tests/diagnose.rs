@@ -9,7 +9,7 @@ use sdnn::sim::simulate::{SimConfig, simulate};
 use sdnn::study::{self, StudyConfig};
 use sdnn::trajectory::Trajectory;
 
-use crate::util::oracle;
+use crate::util::{Dir, assert_close, oracle, root};
 
 const NOMINAL: &str = "kinova_gen3_lite_3dof";
 
@@ -238,9 +238,13 @@ fn payload_on_the_last_link() {
 }
 
 /// Link 2 heavier by 20% with its centre of mass shifted, its inertia about
-/// the centre of mass unchanged: named as an inertial error of link 2, its
-/// first moment m*c across the joint axes within 10% and the held-out MSE
-/// of joint 2 cut by 80%.
+/// the centre of mass unchanged. Link 2's origin lies on the joint-1 and
+/// joint-2 axes, so it never accelerates: its mass cannot be told from
+/// torques, only its first moment m*c. Named as an inertial error of link 2
+/// with the first moment across the joint-2 axis (x, z, which gravity
+/// determines) within 10%, the mass
+/// reported as null with a note saying why, and the held-out MSE of joint 2
+/// cut by 80%.
 #[test]
 fn mass_and_com_error_in_one_link() {
     let (d, m1, c1) = link_error();
@@ -249,12 +253,32 @@ fn mass_and_com_error_in_one_link() {
     let effect = &d.effects[0];
     assert_eq!(effect.kind, Kind::InertialError, "{text}");
     assert_eq!(effect.link.as_deref(), Some("link2"), "{text}");
-    let fitted = effect.parameters["mass"].as_f64().unwrap();
-    let com = com_of(effect);
+    assert!(effect.parameters["mass"].is_null(), "{text}");
+    assert!(
+        d.notes
+            .iter()
+            .any(|n| n.contains("link2") && n.contains("mass is not identifiable")),
+        "{text}"
+    );
+    let moment: Vec<Option<f64>> = effect.parameters["first_moment"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64())
+        .collect();
     for k in [0, 2] {
-        let moment = fitted * com[k].unwrap();
+        let h = moment[k].unwrap_or_else(|| panic!("m*c[{k}] null: {text}"));
         let truth = m1 * c1[k];
-        assert!((moment - truth).abs() <= 0.1 * truth.abs(), "m*c[{k}] {moment} vs {truth}: {text}");
+        assert!(
+            (h - truth).abs() <= 0.1 * truth.abs(),
+            "m*c[{k}] {h} vs {truth}: {text}"
+        );
+    }
+    if moment[1].is_none() {
+        assert!(
+            d.notes.iter().any(|n| n.contains("first moment's y")),
+            "null m*c[1] without a note: {text}"
+        );
     }
     assert!(
         d.mse_after[1] <= 0.2 * d.mse_before[1],
@@ -262,28 +286,7 @@ fn mass_and_com_error_in_one_link() {
         d.mse_before[1],
         d.mse_after[1]
     );
-}
-
-/// The issue's full requirement for a link's mass/COM error: mass within
-/// 10% and COM within 2 cm. OPEN: the fit separates mass from COM only
-/// through the link's second moments (link 2's mass column is zero: its
-/// origin lies on both joint axes), and it lands at 1.00 kg for 1.41 kg with
-/// the COM's joint-axis component off, while its 95% intervals (from the
-/// sample residual variance, which ignores the strong autocorrelation of
-/// filtered data) exclude the truth.
-#[test]
-#[ignore = "open: link mass separated from COM only through second moments; see the doc comment"]
-fn mass_and_com_error_in_one_link_within_tolerance() {
-    let (d, m1, c1) = link_error();
-    let text = serde_json::to_string(&d).unwrap();
-    let effect = &d.effects[0];
-    let fitted = effect.parameters["mass"].as_f64().unwrap();
-    assert!((fitted - m1).abs() <= 0.1 * m1, "mass {fitted} vs {m1}: {text}");
-    for (k, c) in com_of(effect).iter().enumerate() {
-        if let Some(c) = c {
-            assert!((c - c1[k]).abs() <= 0.02, "com[{k}] {c} vs {}: {text}", c1[k]);
-        }
-    }
+    eprintln!("link error: {text}");
 }
 
 /// Diagnosis of link 2 made 20% heavier with its COM moved by (3, 0, 4) cm,
@@ -298,4 +301,140 @@ fn link_error() -> (Diagnosis, f64, [f64; 3]) {
     add_point_mass(&mut truth.bodies[1].parameters, -m0, c0);
     add_point_mass(&mut truth.bodies[1].parameters, m1, c1);
     (run(&truth), m1, c1)
+}
+
+/// End to end: friction hidden in the data (viscous 0.8 on joint 2, Coulomb
+/// 0.5 on joint 3) is diagnosed, `--apply`'s text transform writes it into a
+/// copy of the shipped description in a temporary directory, and the model
+/// regenerated from that copy predicts, on every recorded state, the nominal
+/// compiled torque plus the fitted effects (to 1e-9 relative), and fits the
+/// data as well as the diagnosis promised.
+///
+/// Regeneration uses the generator's structured form
+/// (`codegen::recursive::trace`), which needs no Symbolica: the expanded
+/// Symbolica form is not run here because a test must not rebuild
+/// Symbolica, and both forms are checked against the same numeric oracle
+/// for every shipped model.
+#[test]
+fn applied_fix_regenerates_to_the_fitted_prediction() {
+    let mut truth = oracle(NOMINAL);
+    truth.bodies[1].effects.viscous = 0.8;
+    truth.bodies[2].effects.coulomb = 0.5;
+    let nominal = sdnn::model(NOMINAL).unwrap();
+    let data = record(&truth, 6);
+    let d = diagnose(nominal, &data, Settings::default()).unwrap();
+    let text = serde_json::to_string(&d).unwrap();
+    let found: Vec<_> = d.effects.iter().map(|e| (e.kind, e.joint)).collect();
+    assert!(
+        found.contains(&(Kind::ViscousFriction, Some(2)))
+            && found.contains(&(Kind::CoulombFriction, Some(3))),
+        "{text}"
+    );
+
+    let source =
+        std::fs::read_to_string(root().join("models").join(format!("{NOMINAL}.toml"))).unwrap();
+    let original =
+        codegen::Description::parse(&source, NOMINAL, std::path::Path::new("x.toml")).unwrap();
+    let last_link = original.chain().bodies.last().unwrap().link.clone();
+    let fixed = sdnn::apply::apply_to_text(&source, &d, nominal.joint_names(), &last_link).unwrap();
+    let dir = Dir::new();
+    let path = dir.write(&format!("{NOMINAL}.toml"), &fixed);
+    let description = codegen::Description::load(&path).unwrap();
+    let traced = codegen::recursive::trace(description.chain());
+
+    // The fitted effects' prediction from the diagnosis' parameters.
+    let n = nominal.dof();
+    let sign = |x: f64| {
+        if x > 0.0 {
+            1.0
+        } else if x < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let fitted = |qd: &[f64]| -> Vec<f64> {
+        let mut tau = vec![0.0; n];
+        for e in &d.effects {
+            let j = e.joint.expect("a joint effect") - 1;
+            let p = |name: &str| e.parameters[name].as_f64().unwrap();
+            tau[j] += match e.kind {
+                Kind::ViscousFriction => p("coefficient") * qd[j],
+                Kind::CoulombFriction => p("level") * sign(qd[j]),
+                Kind::Armature | Kind::TorqueOffset | Kind::Payload | Kind::InertialError => {
+                    panic!("unexpected effect {:?}: {text}", e.kind)
+                }
+            };
+        }
+        tau
+    };
+    // The diagnosis takes a joint slower than MOVING as at rest (static
+    // friction, no Coulomb column); the generated code's sign() has no such
+    // dead band. The MSE is compared on the diagnosis' convention (the
+    // program's sign input set to 0 in the band) and also reported with the
+    // generated sign().
+    let dead_band = |x: f64| {
+        if x.abs() > sdnn::diagnose::MOVING {
+            sign(x)
+        } else {
+            0.0
+        }
+    };
+    let mut sse = vec![0.0; n];
+    let mut sse_plain = vec![0.0; n];
+    let mut rows = 0usize;
+    for traj in &data {
+        let qdd = traj.qdd().unwrap();
+        for s in 0..traj.len() {
+            let row = |m: &nalgebra::DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
+            let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(qdd));
+            let inputs: Vec<f64> = (0..n)
+                .flat_map(|j| [q[j].sin(), q[j].cos(), qd[j], qdd[j], sign(qd[j])])
+                .collect();
+            let regenerated = traced.dag.evaluate(&traced.tau, &inputs);
+            let compiled = nominal.tau(&q, &qd, &qdd).unwrap();
+            let effects = fitted(&qd);
+            for j in 0..n {
+                assert_close(
+                    regenerated[j],
+                    compiled[j] + effects[j],
+                    &format!("tau[{j}] at sample {s}"),
+                );
+                sse_plain[j] += (traj.tau()[(s, j)] - regenerated[j]).powi(2);
+            }
+            let inputs: Vec<f64> = (0..n)
+                .flat_map(|j| [q[j].sin(), q[j].cos(), qd[j], qdd[j], dead_band(qd[j])])
+                .collect();
+            let regenerated = traced.dag.evaluate(&traced.tau, &inputs);
+            for j in 0..n {
+                sse[j] += (traj.tau()[(s, j)] - regenerated[j]).powi(2);
+            }
+            rows += 1;
+        }
+    }
+    // mse_after is leave-one-trajectory-out; the regenerated model holds
+    // the fit to all the data, so its MSE on them is the in-sample MSE:
+    // at most the held-out one (up to 5% for the LM/least-squares
+    // round-off and the fold-to-fold spread of a fit that is not exactly
+    // the mean of the folds' fits), and below it only by the optimism of
+    // an in-sample fit, O(p/N) relative with p parameters per joint and N
+    // samples for independent rows, inflated by the autocorrelation of
+    // filtered data but far from 20% with N in the thousands.
+    for j in 0..n {
+        let mse = sse[j] / rows as f64;
+        eprintln!(
+            "joint {}: regenerated MSE {mse:.6e} ({:.6e} with the generated sign()), \
+             diagnosed held-out {:.6e} (before {:.6e})",
+            j + 1,
+            sse_plain[j] / rows as f64,
+            d.mse_after[j],
+            d.mse_before[j]
+        );
+        assert!(
+            mse <= 1.05 * d.mse_after[j] && mse >= 0.8 * d.mse_after[j],
+            "joint {}: regenerated MSE {mse} vs diagnosed {}: {text}",
+            j + 1,
+            d.mse_after[j]
+        );
+    }
 }
