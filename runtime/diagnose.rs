@@ -68,6 +68,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use serde::Serialize;
 
 use crate::dynamics::Dynamics;
+use crate::oracle::coulomb_sign;
 use crate::study::model_torques;
 use crate::trajectory::Trajectory;
 
@@ -177,6 +178,11 @@ struct Candidate {
     link: Option<(usize, String)>,
     names: Vec<&'static str>,
     columns: Vec<DVector<f64>>,
+    /// What the generated model computes for this effect once applied, when
+    /// that differs from the fitted column (Coulomb: the fit leaves out
+    /// samples near rest, the model's sign(qd) does not). Held-out errors are
+    /// scored with it, so they are what the applied model will show.
+    applied: Option<DVector<f64>>,
     shape: Shape,
 }
 
@@ -294,12 +300,24 @@ struct Moments {
     xr: Vec<Vec<DVector<f64>>>,
     rr: Vec<Vec<f64>>,
     rows: Vec<Vec<usize>>,
+    /// For each candidate column, the moment column that scores it (itself,
+    /// or its `applied` column stored after all candidate columns).
+    applied: Vec<usize>,
 }
 
 impl Moments {
     fn new(data: &Stacked, candidates: &[Candidate]) -> Moments {
-        let columns: Vec<&DVector<f64>> =
+        let mut columns: Vec<&DVector<f64>> =
             candidates.iter().flat_map(|c| c.columns.iter()).collect();
+        let mut applied: Vec<usize> = (0..columns.len()).collect();
+        let mut at = 0;
+        for c in candidates {
+            if let Some(column) = &c.applied {
+                applied[at] = columns.len();
+                columns.push(column);
+            }
+            at += c.columns.len();
+        }
         let p = columns.len();
         let groups = data.group.iter().max().map_or(0, |g| g + 1);
         let mut m = Moments {
@@ -307,6 +325,7 @@ impl Moments {
             xr: vec![vec![DVector::zeros(p); data.dof]; groups],
             rr: vec![vec![0.0; data.dof]; groups],
             rows: vec![vec![0; data.dof]; groups],
+            applied,
         };
         for (r, (&g, &y)) in data.group.iter().zip(data.residual.iter()).enumerate() {
             let j = r % data.dof;
@@ -334,6 +353,11 @@ impl Moments {
             }
         }
         (a, b)
+    }
+
+    /// The scoring columns of fitted `columns` (see `Candidate::applied`).
+    fn applied(&self, columns: &[usize]) -> Vec<usize> {
+        columns.iter().map(|&c| self.applied[c]).collect()
     }
 
     /// Residual sum of squares of group g, joint j after subtracting X theta.
@@ -560,10 +584,14 @@ fn candidates(
             link: None,
             names: vec![name],
             columns: vec![own(j, f)],
+            applied: None,
             shape: Shape::Linear,
         };
         list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
-        list.push(one(Kind::CoulombFriction, "level", &|r| moving_sign(qd[r])));
+        list.push(Candidate {
+            applied: Some(own(j, &|r| coulomb_sign(qd[r]))),
+            ..one(Kind::CoulombFriction, "level", &|r| moving_sign(qd[r]))
+        });
         list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
         list.push(one(Kind::TorqueOffset, "offset", &|_| 1.0));
     }
@@ -601,17 +629,18 @@ fn candidates(
             link: Some((k, link.name.clone())),
             names: vec!["mass", "cx", "cy", "cz"],
             columns,
+            applied: None,
             shape,
         });
     }
     list
 }
 
-/// Joints slower than this (rad/s) are taken as at rest: their friction is
-/// static, anywhere between the Coulomb levels, and a measured velocity that
-/// small has an unreliable sign (noise), which would bias the Coulomb level
-/// low. The generated model's `sign` has no such band, so near rest an
-/// applied Coulomb term differs from what was fitted here (see the README).
+/// Joints slower than this (rad/s) are taken as at rest for the Coulomb fit:
+/// their friction is static, anywhere between the Coulomb levels, and a
+/// measured velocity that small has an unreliable sign (noise), which would
+/// bias the level low. Held-out errors are still scored with the generated
+/// model's plain sign(qd) (`Candidate::applied`).
 pub const MOVING: f64 = 0.02;
 
 fn moving_sign(qd: f64) -> f64 {
@@ -864,7 +893,7 @@ fn cv_mse_per_joint(
     candidates: &[Candidate],
     selected: &[usize],
 ) -> Vec<f64> {
-    let columns = columns_of(candidates, selected);
+    let columns = m.applied(&columns_of(candidates, selected));
     let mut sse = vec![0.0; dof];
     let mut count = vec![0usize; dof];
     for g in 0..m.xx.len() {
@@ -1235,7 +1264,7 @@ fn describe(
     let Some((fit, se)) = fit_all(m, candidates, selected) else {
         return Vec::new();
     };
-    let all = columns_of(candidates, selected);
+    let all = m.applied(&columns_of(candidates, selected));
     let sse_none = sse_per_joint(m, &[], &DVector::zeros(0));
     let sse_with = sse_per_joint(m, &all, &fit.coefficients);
     let mut offset = 0;
@@ -1253,7 +1282,7 @@ fn describe(
             .filter(|(p, _)| *p != position)
             .map(|(_, &s)| s)
             .collect();
-        let rest = columns_of(candidates, &without);
+        let rest = m.applied(&columns_of(candidates, &without));
         let sse_without = if without.is_empty() {
             sse_none.clone()
         } else {
@@ -1476,6 +1505,7 @@ mod tests {
             link: None,
             names: vec![],
             columns: vec![],
+            applied: None,
             shape: Shape::Linear,
         }
     }
