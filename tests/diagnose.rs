@@ -402,8 +402,8 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
     // an in-sample fit, O(p/N) relative with p parameters per joint and N
     // samples for independent rows, inflated by the autocorrelation of
     // filtered data but far from 20% with N in the thousands.
-    for j in 0..n {
-        let mse = sse[j] / rows as f64;
+    for (j, joint_sse) in sse.iter().enumerate() {
+        let mse = joint_sse / rows as f64;
         eprintln!(
             "joint {}: regenerated MSE {mse:.6e}, diagnosed held-out {:.6e} (before {:.6e})",
             j + 1,
