@@ -80,6 +80,7 @@ pub fn trace(chain: &Chain) -> Traced {
     let mut t = Tracer {
         dag: Dag::default(),
         chain,
+        parameters: regrouped(chain),
     };
     let n = chain.bodies.len();
     let rotations: Vec<Rotation> = (0..n).map(|i| t.rotation(i)).collect();
@@ -131,6 +132,78 @@ pub fn trace(chain: &Chain) -> Traced {
 struct Tracer<'a> {
     dag: Dag,
     chain: &'a Chain,
+    /// Per body the standard parameters the dynamics use: regrouped (see
+    /// [`regrouped`]), the same torques with fewer non-zero constants.
+    parameters: Vec<[f64; 10]>,
+}
+
+/// The bodies' standard parameters with every part that cannot feel its own
+/// joint moved to the parent body (the base keeps nothing): the mass and the
+/// first moment along the joint axis (they sit on the axis) and an inertia
+/// b (1 - z z^T) about the axis (it sees only the parent's rotation), with b
+/// chosen to zero one diagonal entry when the axis is a coordinate axis.
+/// Kinetic and potential energy are unchanged, so tau, M, g and c are the
+/// same (the classical base-parameter regrouping for revolute joints);
+/// the regressor keeps the description's parameters.
+fn regrouped(chain: &Chain) -> Vec<[f64; 10]> {
+    let mut parameters: Vec<[f64; 10]> = chain
+        .bodies
+        .iter()
+        .map(|b| b.inertial.standard_parameters())
+        .collect();
+    for j in (0..chain.bodies.len()).rev() {
+        let body = &chain.bodies[j];
+        let z = body.axis;
+        let [m, hx, hy, hz, xx, xy, yy, xz, yz, zz] = parameters[j];
+        let h = Vector3::new(hx, hy, hz);
+        let inertia = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+        let along = h.dot(&z);
+        let b = coordinate_axis(&z).map_or(0.0, |k| inertia[((k + 1) % 3, (k + 1) % 3)]);
+        let ring = Matrix3::identity() - z * z.transpose();
+        let kept_h = h - along * z;
+        let kept_i = inertia - b * ring;
+        parameters[j] = pack(0.0, &kept_h, &kept_i);
+        if j == 0 {
+            continue;
+        }
+        // The moved part in the parent's axes, about the joint origin p.
+        let p = body.translation;
+        let zp = body.rotation * z;
+        let moment = along * zp;
+        let about_p = b * (Matrix3::identity() - zp * zp.transpose());
+        let about_origin = about_p
+            + m * (p.norm_squared() * Matrix3::identity() - p * p.transpose())
+            + 2.0 * p.dot(&moment) * Matrix3::identity()
+            - p * moment.transpose()
+            - moment * p.transpose();
+        let added = pack(m, &(m * p + moment), &about_origin);
+        for (total, extra) in parameters[j - 1].iter_mut().zip(added) {
+            *total += extra;
+        }
+    }
+    parameters
+}
+
+/// k when `z` is +-e_k.
+fn coordinate_axis(z: &Vector3<f64>) -> Option<usize> {
+    (0..3).find(|&k| (z[k].abs() - 1.0).abs() < SNAP && z.norm_squared() - z[k] * z[k] < SNAP)
+}
+
+/// Standard parameters (Pinocchio's order) from mass, first moment and
+/// inertia about the origin.
+fn pack(m: f64, h: &Vector3<f64>, i: &Matrix3<f64>) -> [f64; 10] {
+    [
+        m,
+        h.x,
+        h.y,
+        h.z,
+        i[(0, 0)],
+        i[(0, 1)],
+        i[(1, 1)],
+        i[(0, 2)],
+        i[(1, 2)],
+        i[(2, 2)],
+    ]
 }
 
 impl<'a> Tracer<'a> {
@@ -162,6 +235,7 @@ impl<'a> Tracer<'a> {
         let mut scratch = Tracer {
             dag: Dag::default(),
             chain: self.chain,
+            parameters: Vec::new(),
         };
         let [one, staged] = [false, true].map(|stage| {
             let rotation = scratch.rotation_in(i, stage);
@@ -266,8 +340,7 @@ impl<'a> Tracer<'a> {
     }
 
     fn inertia(&mut self, i: usize) -> Inertia {
-        let [m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] =
-            self.body(i).inertial.standard_parameters();
+        let [m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] = self.parameters[i];
         let h = [hx, hy, hz].map(|x| self.dag.constant(x));
         let k = [ixx, ixy, iyy, ixz, iyz, izz].map(|x| self.dag.constant(x));
         let [xx, xy, yy, xz, yz, zz] = k;
@@ -387,7 +460,7 @@ impl<'a> Tracer<'a> {
     /// Mass, first moment and second moment P = int r r^T dm of body `i`
     /// about its origin, the latter as numbers.
     fn moments(&mut self, i: usize) -> (NodeId, V3, Matrix3<f64>) {
-        let [m, hx, hy, hz, xx, xy, yy, xz, yz, zz] = self.body(i).inertial.standard_parameters();
+        let [m, hx, hy, hz, xx, xy, yy, xz, yz, zz] = self.parameters[i];
         let inertia = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
         let p = Matrix3::identity() * (inertia.trace() / 2.0) - inertia;
         let h = [hx, hy, hz].map(|x| self.dag.constant(x));
