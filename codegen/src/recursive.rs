@@ -867,33 +867,3 @@ mod tests {
         assert_eq!(m[1], m[2]);
     }
 }
-
-#[cfg(test)]
-mod stats {
-    use super::*;
-    use crate::description::Description;
-
-    /// `cargo test --release --no-default-features -- --ignored --nocapture`:
-    /// operation counts (plain, negation-aware) of the shipped models.
-    #[test]
-    #[ignore]
-    fn print_operation_counts() {
-        for model in ["panda", "kinova_gen3_lite", "kinova_gen3_lite_3dof"] {
-            let path = format!("{}/../models/{model}.toml", env!("CARGO_MANIFEST_DIR"));
-            let t = trace(Description::load(&path).unwrap().chain());
-            for (name, roots) in [
-                ("tau", &t.tau),
-                ("mass_matrix", &t.mass_matrix),
-                ("coriolis", &t.coriolis),
-                ("gravity", &t.gravity),
-                ("regressor", &t.regressor),
-            ] {
-                let (plain, aware) = (
-                    t.dag.operation_count(roots),
-                    t.dag.negation_aware_count(roots),
-                );
-                println!("COUNT {model} {name} {plain} {aware}");
-            }
-        }
-    }
-}
