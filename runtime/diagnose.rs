@@ -87,6 +87,16 @@ pub enum Kind {
     InertialError,
 }
 
+impl Kind {
+    /// The kind as JSON names it (`viscous_friction`, ...).
+    pub fn name(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default()
+    }
+}
+
 /// A named missing effect with its fitted parameters.
 #[derive(Debug, Clone, Serialize)]
 pub struct Effect {
@@ -1089,10 +1099,7 @@ fn prune(
 
 /// How a candidate is named in notes.
 fn label(candidate: &Candidate) -> String {
-    let kind = serde_json::to_value(candidate.kind)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_default();
+    let kind = candidate.kind.name();
     match (&candidate.joint, &candidate.link) {
         (Some(j), _) => format!("{kind} on joint {}", j + 1),
         (None, Some((k, name))) => format!("{kind} of link {} (`{name}`)", k + 1),
@@ -1168,10 +1175,7 @@ fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Res
         }
         _ => return Ok(()),
     };
-    let kind = serde_json::to_value(candidate.kind)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_default();
+    let kind = candidate.kind.name();
     Err(format!(
         "{at}: the data fit {kind} = {value:.4}, a negative value (it would cut a joint's \
          held-out MSE by {percent:.0}%): {meaning}; not named"

@@ -16,6 +16,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt;
 use std::str::FromStr;
 
+use codegen::reduce::rpy_matrix;
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use toml_edit::{Array, ArrayOfTables, DocumentMut, InlineTable, Item, Table, Value};
 use urdf_rs::{JointType, Robot};
@@ -786,11 +787,6 @@ fn base_gravity(
     let g = rotation.transpose() * Vector3::from(WORLD_GRAVITY);
     // Exact right angles leave ~1e-16 residues; print them as zero.
     Ok(g.map(|x| if x.abs() < 1e-12 { 0.0 } else { x }).into())
-}
-
-/// URDF roll-pitch-yaw (fixed axes x, y, z): Rz(yaw) Ry(pitch) Rx(roll).
-fn rpy_matrix(rpy: &[f64; 3]) -> Matrix3<f64> {
-    Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner()
 }
 
 fn axis_rotation(axis: &[f64; 3], angle: f64) -> Matrix3<f64> {
