@@ -74,6 +74,11 @@ pub struct FilterArgs {
     /// Filter window in samples after downsampling (40 = 0.4 s at 100 Hz).
     #[arg(long, default_value_t = 40)]
     pub window: usize,
+    /// Also smooth the measured torque with the acceleration's filter
+    /// (parallel filtering): recommended for `diagnose`, whose fit then sees
+    /// torque and states smoothed alike; off in the thesis pipeline.
+    #[arg(long)]
+    pub filter_torque: bool,
 }
 
 impl FilterArgs {
@@ -99,6 +104,7 @@ impl FilterArgs {
         Ok(Preprocess {
             downsample: self.downsample,
             filter,
+            filter_torque: self.filter_torque,
         })
     }
 }
@@ -637,7 +643,8 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
         let backup = crate::apply::apply_to_file(&toml, &report, model.joint_names(), &last)?;
         eprintln!(
             "updated {} (backup {}); next: `cargo build --release` regenerates the model, then \
-             `sdnn evaluate --model {} --data ...` shows the new gap",
+             `sdnn evaluate --model {} --data ...` with the same preprocessing options shows the \
+             new gap",
             toml.display(),
             backup.display(),
             model.name()

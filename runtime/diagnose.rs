@@ -1033,8 +1033,19 @@ fn select(
             refused.push(c);
             continue;
         }
+        // A nonlinear candidate (a payload trading mass for lever arm) can
+        // win on fit yet leave its parameters undetermined: refuse it and let
+        // the others compete.
         let Some(values) = significant(m, candidates, &trial, &full, settings.min_t) else {
-            break;
+            notes.push(format!(
+                "{}: would cut a joint's held-out MSE by {:.0}%, but its parameters are not \
+                 significant (|t| <= {}); not named",
+                label(&candidates[c]),
+                100.0 * gain,
+                settings.min_t
+            ));
+            refused.push(c);
+            continue;
         };
         if let Err(note) = physical(&candidates[c], &values, gain, settings.reach) {
             notes.push(note);

@@ -259,6 +259,11 @@ pub struct Preprocess {
     pub downsample: usize,
     /// Velocity filter (SMA, window 40 = 0.4 s at 100 Hz, centred).
     pub filter: Filter,
+    /// Also low-pass the measured torque with the acceleration's filter
+    /// ("parallel filtering" of identification): the torque then carries no
+    /// more high-frequency content than the smoothed states that explain it.
+    /// Off in the thesis pipeline.
+    pub filter_torque: bool,
 }
 
 impl Default for Preprocess {
@@ -269,6 +274,7 @@ impl Default for Preprocess {
                 window: 40,
                 centered: true,
             },
+            filter_torque: false,
         }
     }
 }
@@ -300,14 +306,33 @@ impl Preprocess {
             qd.column_mut(j).copy_from_slice(&v);
             qdd.column_mut(j).copy_from_slice(&a);
         }
+        let mut tau = traj.tau().clone();
+        if self.filter_torque {
+            for j in 0..traj.dof() {
+                let raw: Vec<f64> = traj.tau().column(j).iter().copied().collect();
+                tau.column_mut(j)
+                    .copy_from_slice(&self.acceleration_lowpass(&raw, dt)?);
+            }
+        }
         let t = traj.t().to_vec();
-        Ok(Trajectory::new(
-            t,
-            traj.q().clone(),
-            qd,
-            Some(qdd),
-            traj.tau().clone(),
-        )?)
+        Ok(Trajectory::new(t, traj.q().clone(), qd, Some(qdd), tau)?)
+    }
+
+    /// The low-pass that the acceleration estimate applies, as a smoother:
+    /// the SMA twice (velocity, then difference) or the Savitzky-Golay fit.
+    fn acceleration_lowpass(&self, x: &[f64], dt: f64) -> Result<Vec<f64>, PreprocessError> {
+        match self.filter {
+            Filter::None => Ok(x.to_vec()),
+            Filter::Sma { window, centered } => {
+                let c = if centered {
+                    Centering::Centered
+                } else {
+                    Centering::Trailing
+                };
+                moving_average(&moving_average(x, window, c)?, window, c)
+            }
+            Filter::SavitzkyGolay { window, order } => savitzky_golay(x, window, order, 0, dt),
+        }
     }
 
     /// Returns (smoothed velocity, acceleration) for one joint.
@@ -395,6 +420,7 @@ mod tests {
                 window: 21,
                 order: 3,
             },
+            filter_torque: false,
         };
         let out = cfg.apply(&sine_trajectory(0.0)).unwrap();
         let qdd = out.qdd().unwrap();
@@ -410,6 +436,55 @@ mod tests {
                 (qdd[(i, 1)] - exact).abs() < tol,
                 "{i}: {} vs {exact}",
                 qdd[(i, 1)]
+            );
+        }
+    }
+
+    /// `filter_torque` smooths the torque like the acceleration; off, the
+    /// torque is kept as measured.
+    #[test]
+    fn torque_filter_removes_noise_only_when_asked() {
+        let base = sine_trajectory(0.0);
+        let jitter = |i: usize| 0.05 * ((i as f64 * 78.233).sin() * 43758.5453).fract();
+        let tau = DMatrix::from_fn(base.len(), 2, |i, _| (0.5 * base.t()[i]).sin() + jitter(i));
+        let noisy = Trajectory::new(
+            base.t().to_vec(),
+            base.q().clone(),
+            base.qd().clone(),
+            None,
+            tau,
+        )
+        .unwrap();
+        let sg = Filter::SavitzkyGolay {
+            window: 21,
+            order: 3,
+        };
+        for filter in [Preprocess::default().filter, sg] {
+            let raw = Preprocess {
+                filter: filter.clone(),
+                ..Preprocess::default()
+            };
+            let kept = raw.apply(&noisy).unwrap();
+            assert_eq!(kept.tau(), &downsample(&noisy, 10).unwrap().tau().clone());
+            let smooth = Preprocess {
+                filter_torque: true,
+                ..raw
+            }
+            .apply(&noisy)
+            .unwrap();
+            // Away from the ends the pseudo-noise averages out and the slow
+            // sine passes.
+            let rms = |traj: &Trajectory| {
+                let sum: f64 = (40..160)
+                    .map(|i| (traj.tau()[(i, 0)] - (0.5 * traj.t()[i]).sin()).powi(2))
+                    .sum();
+                (sum / 120.0).sqrt()
+            };
+            assert!(
+                rms(&smooth) < 0.4 * rms(&kept),
+                "{filter:?}: {} vs {}",
+                rms(&smooth),
+                rms(&kept)
             );
         }
     }

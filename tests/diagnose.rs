@@ -3,6 +3,7 @@
 
 use sdnn::diagnose::{Diagnosis, Kind, Settings, diagnose};
 use sdnn::oracle::Model;
+use sdnn::preprocess::{Filter, Preprocess};
 use sdnn::sim::models::Compiled;
 use sdnn::sim::reference::{WaypointConfig, WaypointTrajectory};
 use sdnn::sim::simulate::{SimConfig, simulate};
@@ -13,13 +14,25 @@ use crate::util::{Dir, assert_close, oracle, root};
 
 const NOMINAL: &str = "kinova_gen3_lite_3dof";
 
+/// Preprocessing as `sdnn diagnose --filter-torque` does it: the thesis
+/// filter, the torque smoothed like the acceleration.
+fn diagnosis_preprocess() -> Preprocess {
+    Preprocess {
+        filter_torque: true,
+        ..StudyConfig::default().preprocess
+    }
+}
+
 fn record(truth: &Model, count: u64) -> Vec<Trajectory> {
+    record_with(truth, count, &diagnosis_preprocess())
+}
+
+fn record_with(truth: &Model, count: u64, preprocess: &Preprocess) -> Vec<Trajectory> {
     let nominal = sdnn::model(NOMINAL).unwrap();
     let waypoints = WaypointConfig {
         limits: study::limits(nominal, &StudyConfig::default()).unwrap(),
         ..WaypointConfig::default()
     };
-    let preprocess = StudyConfig::default().preprocess;
     (0..count)
         .map(|seed| {
             let reference = WaypointTrajectory::new(&waypoints, 100 + seed).unwrap();
@@ -110,14 +123,50 @@ fn clean_data_names_no_effect() {
     assert!(d.effects.is_empty(), "named {found:?} on clean data");
 }
 
-/// Armature is named and estimated, but the held-out MSE cut stops near
-/// 78%: what remains is the error of the filtered acceleration times the
-/// armature plus sensor noise (the issue asks for 80%; open).
+/// Armature on one joint. Its torque lives at the frequencies the
+/// acceleration filter removes, which is why the records smooth the torque
+/// alike (`filter_torque`): with the raw torque the held-out cut stops near
+/// 78%, the rest being what the smoothed acceleration cannot explain.
 #[test]
 fn armature_on_one_joint() {
     let mut truth = oracle(NOMINAL);
     truth.bodies[0].effects.armature = 0.4;
-    assert_named(&run(&truth), Kind::Armature, Some(1), "inertia", 0.4, 0.7);
+    assert_single(&run(&truth), Kind::Armature, Some(1), "inertia", 0.4);
+}
+
+/// With raw torque and a short Savitzky-Golay filter a payload far out on
+/// the last link (tiny mass, long lever) fits joint 1's missing inertia
+/// best, but its mass is not significant: it is refused with a note and
+/// the armature is still named (low by about 15%: the 0.2 s filter's noisy
+/// acceleration attenuates the fit, errors in the variables).
+#[test]
+fn an_undetermined_payload_does_not_hide_the_armature() {
+    let mut truth = oracle(NOMINAL);
+    truth.bodies[0].effects.armature = 0.4;
+    let preprocess = Preprocess {
+        downsample: 10,
+        filter: Filter::SavitzkyGolay {
+            window: 21,
+            order: 3,
+        },
+        filter_torque: false,
+    };
+    let nominal = sdnn::model(NOMINAL).unwrap();
+    let d = diagnose(
+        nominal,
+        &record_with(&truth, 6, &preprocess),
+        Settings::default(),
+    )
+    .unwrap();
+    let found: Vec<_> = d.effects.iter().map(|e| (e.kind, e.joint)).collect();
+    assert_eq!(found, [(Kind::Armature, Some(1))]);
+    assert!(
+        d.notes
+            .iter()
+            .any(|n| n.contains("payload") && n.contains("not significant")),
+        "{:?}",
+        d.notes
+    );
 }
 
 /// Viscous and Coulomb friction on every joint at once (the plant's values):
