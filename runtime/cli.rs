@@ -192,9 +192,10 @@ fn models(format: Format) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&list)?);
         }
         Format::Text => {
+            let width = all.iter().map(|m| m.name().len()).max().unwrap_or(0);
             for m in all {
                 println!(
-                    "{:<28} {} DOF  joints: {}",
+                    "{:<width$} {} DOF  joints: {}",
                     m.name(),
                     m.dof(),
                     m.joint_names().join(", ")
