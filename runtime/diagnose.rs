@@ -677,6 +677,10 @@ fn width(candidate: &Candidate) -> usize {
     candidate.shape.width(candidate.columns.len())
 }
 
+/// Smallest squared Cholesky pivot of a unit-diagonal matrix that
+/// [`pseudo_solve`] trusts; below it the SVD decides what is singular.
+const CHOLESKY_PIVOT: f64 = 1e-8;
+
 /// A least-squares fit of some candidates.
 struct Fit {
     /// The candidates' parameters, concatenated in selection order.
@@ -689,7 +693,9 @@ struct Fit {
 
 /// Solves H x = g for a symmetric positive semi-definite H by the
 /// pseudo-inverse of its unit-diagonal scaling (minimum-norm in scaled
-/// parameters when H is singular).
+/// parameters when H is singular). A Cholesky factor whose pivots all stay
+/// above [`CHOLESKY_PIVOT`] (a well-conditioned H, nearly every call) solves
+/// it at a fraction of the SVD's cost, with the same solution.
 fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
     let k = h.nrows();
     if k == 0 {
@@ -701,6 +707,13 @@ fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
     });
     let scaled = DMatrix::from_fn(k, k, |i, j| h[(i, j)] / (d[i] * d[j]));
     let rhs = DVector::from_fn(k, |i, _| g[i] / d[i]);
+    if let Some(cholesky) = scaled.clone().cholesky() {
+        let l = cholesky.l_dirty();
+        if (0..k).all(|i| l[(i, i)] * l[(i, i)] > CHOLESKY_PIVOT) {
+            let x = cholesky.solve(&rhs);
+            return DVector::from_fn(k, |i, _| x[i] / d[i]);
+        }
+    }
     let svd = scaled.svd(true, true);
     let tolerance = 1e-12 * svd.singular_values.max().max(f64::MIN_POSITIVE);
     let x = svd
