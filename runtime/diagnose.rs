@@ -9,7 +9,9 @@
 //! that link; the payload's own rotational inertia is neglected). Effects are
 //! chosen by forward selection, each step keeping the candidate that lowers
 //! the leave-one-trajectory-out cross-validated MSE most, while it lowers it
-//! by at least `min_gain` and its parameters are significant (|t| > 3).
+//! by at least `min_gain` and its parameters are significant (|t| > 3, each
+//! with the larger of its least-squares and its delete-one-trajectory
+//! jackknife standard error, as are the reported 95% intervals).
 //! A fit with a physically impossible sign (negative friction, armature or
 //! payload mass) is never named as that effect: it is reported as a note
 //! (e.g. a negative "armature" means the model's inertia about that joint is
@@ -1238,7 +1240,10 @@ fn fit_all(
 /// The fitted parameters of the last candidate of `trial` when it is
 /// significant: every parameter of a joint effect; a payload's mass (its COM
 /// components may be zero); for an inertial error, a change of the mass or
-/// of some COM component from the model's.
+/// of some COM component from the model's. Each |t| uses the larger of the
+/// least-squares and the jackknife standard error, so a parameter that
+/// swings from trajectory to trajectory is not significant however many
+/// correlated samples pin it down within each.
 fn significant(
     m: &Moments,
     candidates: &[Candidate],
@@ -1248,6 +1253,11 @@ fn significant(
 ) -> Option<Vec<f64>> {
     let (_, se) = fit_all(m, candidates, trial)?;
     let theta = &full.theta;
+    // The larger of the least-squares and the jackknife standard errors.
+    let se = match jackknife_half_widths(m, candidates, trial, theta) {
+        Some(half) => se.zip_map(&half, |s, h| s.max(h / 1.96)),
+        None => se,
+    };
     let added = *trial.last()?;
     let offset: usize = trial[..trial.len() - 1]
         .iter()
@@ -1292,6 +1302,7 @@ fn describe(
     let Some((fit, se)) = fit_all(m, candidates, selected) else {
         return Vec::new();
     };
+    let jackknife = jackknife_half_widths(m, candidates, selected, &fit.theta);
     let all = m.applied(&columns_of(candidates, selected));
     let sse_none = sse_per_joint(m, &[], &DVector::zeros(0));
     let sse_with = sse_per_joint(m, &all, &fit.coefficients);
@@ -1301,7 +1312,13 @@ fn describe(
         let candidate = &candidates[c];
         let w = width(candidate);
         let values: Vec<(f64, f64)> = (offset..offset + w)
-            .map(|k| (fit.theta[k], 1.96 * se[k]))
+            .map(|k| {
+                let half = 1.96 * se[k];
+                (
+                    fit.theta[k],
+                    jackknife.as_ref().map_or(half, |j| half.max(j[k])),
+                )
+            })
             .collect();
         offset += w;
         let without: Vec<usize> = selected
@@ -1329,6 +1346,49 @@ fn describe(
         effects.push(effect(candidate, &values, share, resolution, notes));
     }
     effects
+}
+
+/// 95% half-widths of the parameters from the leave-one-trajectory-out
+/// fits (delete-one jackknife over trajectories, Student t with G - 1
+/// degrees of freedom): unlike the least-squares standard errors they hold
+/// when the samples of a trajectory are correlated (filtered signals,
+/// unmodelled structure), because trajectories are independent. `None`
+/// below three trajectories or when a fold cannot be fitted.
+fn jackknife_half_widths(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    theta: &DVector<f64>,
+) -> Option<DVector<f64>> {
+    let groups = m.xx.len();
+    if groups < 3 {
+        return None;
+    }
+    let folds = (0..groups)
+        .map(|g| fit(m, candidates, selected, |h| h != g).map(|f| f.theta))
+        .collect::<Option<Vec<_>>>()?;
+    let mean = folds.iter().fold(DVector::zeros(theta.len()), |a, f| a + f) / groups as f64;
+    let g = groups as f64;
+    let t = student_t975(groups - 1);
+    Some(DVector::from_fn(theta.len(), |k, _| {
+        let spread: f64 = folds.iter().map(|f| (f[k] - mean[k]).powi(2)).sum();
+        t * ((g - 1.0) / g * spread).sqrt()
+    }))
+}
+
+/// The 97.5% quantile of Student's t with `dof` degrees of freedom.
+fn student_t975(dof: usize) -> f64 {
+    const TABLE: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+        2.052, 2.048, 2.045, 2.042,
+    ];
+    match dof {
+        0 => f64::INFINITY,
+        1..=30 => TABLE[dof - 1],
+        // Within 0.003 of the exact quantile beyond 30.
+        _ => 1.96 + 2.4 / dof as f64,
+    }
 }
 
 /// Residual SSE per joint over all samples with `columns` fitted as `coefficients`.
@@ -1559,5 +1619,14 @@ mod tests {
         // 7 g at 1.7 m (a first moment of 0.012 kg m): beyond the arm.
         let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], 0.3, 1.0).unwrap_err();
         assert!(note.contains("first-moment"), "{note}");
+    }
+
+    #[test]
+    fn student_quantiles_fall_towards_the_normal() {
+        assert_eq!(student_t975(5), 2.571);
+        assert_eq!(student_t975(30), 2.042);
+        assert!((student_t975(60) - 2.000).abs() < 0.003);
+        assert!((student_t975(1_000_000) - 1.96).abs() < 1e-5);
+        assert!(student_t975(0).is_infinite());
     }
 }
