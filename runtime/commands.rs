@@ -109,8 +109,9 @@ impl FilterArgs {
     }
 }
 
+/// Options shared by the studies: where results go, seeds and networks.
 #[derive(Debug, Args)]
-pub struct ReproduceArgs {
+pub struct StudyRunArgs {
     /// Results folder.
     #[arg(long, default_value = "results")]
     pub out: PathBuf,
@@ -120,14 +121,6 @@ pub struct ReproduceArgs {
     /// Seeds per network.
     #[arg(long, default_value_t = 5)]
     pub seeds: usize,
-    /// Number of recorded trajectories and of training trajectories.
-    #[arg(long, default_value_t = 14)]
-    pub trajectories: usize,
-    #[arg(long, default_value_t = 10)]
-    pub train: usize,
-    /// Seconds per trajectory.
-    #[arg(long, default_value_t = 20.0)]
-    pub duration: f64,
     /// Maximum training epochs per network.
     #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
     pub epochs: usize,
@@ -140,31 +133,55 @@ pub struct ReproduceArgs {
     /// Adam learning rate.
     #[arg(long, default_value_t = StudyConfig::default().learning_rate)]
     pub learning_rate: f64,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+impl StudyRunArgs {
+    /// The study defaults with these seeds and network settings.
+    fn config(&self) -> StudyConfig {
+        StudyConfig {
+            seed: self.seed,
+            seeds: self.seeds,
+            max_epochs: self.epochs,
+            patience: self.patience,
+            hidden: self.hidden.clone(),
+            learning_rate: self.learning_rate,
+            ..StudyConfig::default()
+        }
+    }
+}
+
+#[derive(Debug, Args)]
+pub struct ReproduceArgs {
+    /// Number of recorded trajectories and of training trajectories.
+    #[arg(long, default_value_t = 14)]
+    pub trajectories: usize,
+    #[arg(long, default_value_t = 10)]
+    pub train: usize,
+    /// Seconds per trajectory.
+    #[arg(long, default_value_t = 20.0)]
+    pub duration: f64,
     /// Plant (truth) and nominal (analytical) compiled models.
     #[arg(long, default_value = DEFAULT_PLANT)]
     pub plant: String,
     #[arg(long, default_value = DEFAULT_NOMINAL)]
     pub nominal: String,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
+    #[command(flatten)]
+    pub run: StudyRunArgs,
 }
 
 pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
     let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
     let config = StudyConfig {
-        seed: args.seed,
-        seeds: args.seeds,
         trajectories: args.trajectories,
         train: args.train,
         duration: args.duration,
-        max_epochs: args.epochs,
-        patience: args.patience,
-        hidden: args.hidden.clone(),
-        learning_rate: args.learning_rate,
-        ..StudyConfig::default()
+        ..args.run.config()
     };
-    run_study(&args.out, args.format, |progress| {
-        study::run(plant, nominal, &config, &args.out, progress)
+    let out = &args.run.out;
+    run_study(out, args.run.format, |progress| {
+        study::run(plant, nominal, &config, out, progress)
     })
 }
 
@@ -210,22 +227,8 @@ pub struct StudyArgs {
     pub input: InputArgs,
     #[command(flatten)]
     pub filter: FilterArgs,
-    /// Results folder.
-    #[arg(long, default_value = "results")]
-    pub out: PathBuf,
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Seeds per network.
-    #[arg(long, default_value_t = 5)]
-    pub seeds: usize,
-    /// Maximum training epochs per network.
-    #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
-    pub epochs: usize,
-    /// Hidden layer widths, comma separated.
-    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden)]
-    pub hidden: Vec<usize>,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
+    #[command(flatten)]
+    pub run: StudyRunArgs,
 }
 
 /// The SDNN study on measured recordings (see `study::run_on_measurements`).
@@ -237,21 +240,18 @@ pub fn study_command(args: &StudyArgs) -> Result<()> {
         .map(|path| Ok(read_csv(path, &args.input.options(Some(nominal.dof()), 2))?))
         .collect::<Result<Vec<_>>>()?;
     let config = StudyConfig {
-        seed: args.seed,
-        seeds: args.seeds,
-        max_epochs: args.epochs,
-        hidden: args.hidden.clone(),
         preprocess: args.filter.preprocess()?,
         trajectories: recordings.len() * (args.train_pieces + 1),
         train: recordings.len() * args.train_pieces,
-        ..StudyConfig::default()
+        ..args.run.config()
     };
     let split = study::MeasuredSplit {
         test_from: args.test_from,
         train_pieces: args.train_pieces,
     };
-    run_study(&args.out, args.format, |progress| {
-        study::run_on_measurements(nominal, &recordings, split, &config, &args.out, progress)
+    let out = &args.run.out;
+    run_study(out, args.run.format, |progress| {
+        study::run_on_measurements(nominal, &recordings, split, &config, out, progress)
     })
 }
 
