@@ -334,6 +334,7 @@ mod tests {
             mse_after: vec![],
             effects,
             notes: vec![],
+            residuals: Default::default(),
         }
     }
 

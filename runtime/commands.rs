@@ -567,6 +567,10 @@ pub struct DiagnoseArgs {
     /// The description to update with --apply (default models/MODEL.toml).
     #[arg(long)]
     pub toml: Option<PathBuf>,
+    /// Write residual-vs-velocity and residual-vs-acceleration plots (SVG,
+    /// per joint, before and after the named effects) into this folder.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
 }
 
 pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
@@ -626,6 +630,11 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
             for note in &report.notes {
                 println!("  note: {note}");
             }
+        }
+    }
+    if let Some(dir) = &args.plots {
+        for path in crate::diagnose_plots::write(dir, &report)? {
+            eprintln!("wrote {}", path.display());
         }
     }
     if args.apply && !report.effects.is_empty() {

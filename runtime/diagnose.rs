@@ -132,6 +132,22 @@ pub struct Diagnosis {
     /// Structure the data supports but no physical effect explains, e.g. a
     /// negative armature (the model's inertia about a joint is too high).
     pub notes: Vec<String>,
+    /// Every sample's residual before and after the named effects (fitted
+    /// to all data), for plots; not part of the JSON report.
+    #[serde(skip)]
+    pub residuals: ResidualSamples,
+}
+
+/// Per sample and joint (row `sample * dof + joint`): the joint's velocity
+/// and acceleration and its residual with the nominal model and with the
+/// named effects added.
+#[derive(Debug, Clone, Default)]
+pub struct ResidualSamples {
+    pub dof: usize,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+    pub before: Vec<f64>,
+    pub after: Vec<f64>,
 }
 
 /// Residual structure of one joint.
@@ -299,6 +315,8 @@ fn point_mass(m: f64, c: &Vector3<f64>) -> [f64; 10] {
 struct Stacked {
     residual: DVector<f64>,
     measured: DVector<f64>,
+    qd: DVector<f64>,
+    qdd: DVector<f64>,
     group: Vec<usize>,
     dof: usize,
 }
@@ -427,6 +445,7 @@ pub fn diagnose(
         settings.com_resolution * size,
         &mut notes,
     );
+    let residuals = residual_samples(&data, &moments, &candidates, &selected);
     Ok(Diagnosis {
         model: model.name().to_string(),
         samples: data.residual.len() / data.dof,
@@ -440,7 +459,39 @@ pub fn diagnose(
         mse_after,
         effects,
         notes,
+        residuals,
     })
+}
+
+/// The residuals before and after subtracting what the selected effects,
+/// fitted to all data, add to the model (as the applied model computes it).
+fn residual_samples(
+    data: &Stacked,
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> ResidualSamples {
+    let mut after = data.residual.clone();
+    if let Some(fit) = fit(m, candidates, selected, |_| true) {
+        let columns = selected.iter().flat_map(|&c| {
+            let candidate = &candidates[c];
+            // As in `Moments::new`: an `applied` column scores the first.
+            (0..candidate.columns.len()).map(move |k| match (&candidate.applied, k) {
+                (Some(applied), 0) => applied,
+                _ => &candidate.columns[k],
+            })
+        });
+        for (column, coefficient) in columns.zip(fit.coefficients.iter()) {
+            after.axpy(-coefficient, column, 1.0);
+        }
+    }
+    ResidualSamples {
+        dof: data.dof,
+        qd: data.qd.as_slice().to_vec(),
+        qdd: data.qdd.as_slice().to_vec(),
+        before: data.residual.as_slice().to_vec(),
+        after: after.as_slice().to_vec(),
+    }
 }
 
 /// Whether the data identify the mass of an `inertial_error` candidate's
@@ -567,21 +618,17 @@ fn stack(
     let data = Stacked {
         residual,
         measured,
+        qd,
+        qdd,
         group,
         dof: n,
     };
-    let candidates = candidates(&data, &qd, &qdd, inertial, &links(model));
+    let candidates = candidates(&data, inertial, &links(model));
     Ok((data, candidates))
 }
 
-fn candidates(
-    data: &Stacked,
-    qd: &DVector<f64>,
-    qdd: &DVector<f64>,
-    mut inertial: Vec<DVector<f64>>,
-    links: &[Link],
-) -> Vec<Candidate> {
-    let n = data.dof;
+fn candidates(data: &Stacked, mut inertial: Vec<DVector<f64>>, links: &[Link]) -> Vec<Candidate> {
+    let (n, qd, qdd) = (data.dof, &data.qd, &data.qdd);
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
         DVector::from_fn(
             data.residual.len(),

@@ -9,6 +9,7 @@ pub mod apply;
 pub mod cli;
 pub mod commands;
 pub mod diagnose;
+pub mod diagnose_plots;
 pub mod dynamics;
 pub mod import_log;
 pub mod import_urdf;

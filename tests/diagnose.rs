@@ -96,6 +96,19 @@ fn assert_named(d: &Diagnosis, kind: Kind, joint: Option<usize>, name: &str, tru
         d.mse_before[j],
         d.mse_after[j]
     );
+    // The plotted residuals: before is the reported residual; after, with
+    // the effects fitted to all data, fits at least as well as held out.
+    let r = &d.residuals;
+    let mean_square = |v: &[f64]| {
+        let joint: Vec<f64> = v.iter().skip(j).step_by(r.dof).copied().collect();
+        joint.iter().map(|x| x * x).sum::<f64>() / joint.len() as f64
+    };
+    assert_close(
+        mean_square(&r.before).sqrt(),
+        d.residual_rms[j],
+        "residual RMS",
+    );
+    assert!(mean_square(&r.after) <= 1.05 * d.mse_after[j]);
 }
 
 #[test]
@@ -449,7 +462,7 @@ fn numbers_compare_within_rounding() {
 
 /// End to end, as a user runs it: friction hidden in recordings (viscous 0.8
 /// on joint 2, Coulomb 0.5 on joint 3) written as raw CSV; `sdnn diagnose
-/// --apply` on a copy of the shipped description in a temporary directory;
+/// --plots --apply` (the residual plots are written) on a copy of the shipped description in a temporary directory;
 /// that copy is the committed `kinova_gen3_lite_3dof_diagnosed.toml`, which
 /// the build script regenerated with the generator (Symbolica on its one
 /// thread for this 3-joint chain); the compiled model's `tau` is the nominal
@@ -474,14 +487,9 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
     let source = std::fs::read_to_string(root().join(format!("models/{NOMINAL}.toml"))).unwrap();
     let copy = dir.write(&format!("{DIAGNOSED}.toml"), &source);
 
-    let mut args = vec![
-        "diagnose",
-        "--model",
-        NOMINAL,
-        "--filter-torque",
-        "--format",
-        "json",
-    ];
+    let plots = dir.path().join("plots");
+    let mut args = vec!["diagnose", "--model", NOMINAL, "--filter-torque"];
+    args.extend(["--format", "json", "--plots", plots.to_str().unwrap()]);
     args.extend(["--apply", "--toml", copy.to_str().unwrap(), "--data"]);
     args.extend(files.iter().map(String::as_str));
     let run = sdnn(&args);
@@ -498,6 +506,21 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
         .collect();
     assert_eq!(found.len(), 2, "{d}");
     assert!(found.contains(&("viscous_friction", 2)) && found.contains(&("coulomb_friction", 3)));
+
+    for (file, axis) in [
+        ("residual_vs_velocity.svg", "velocity"),
+        ("residual_vs_acceleration.svg", "acceleration"),
+    ] {
+        let svg = std::fs::read_to_string(plots.join(file)).unwrap();
+        for text in [
+            format!("residual vs joint {axis}"),
+            "Joint 3".into(),
+            "nominal model".into(),
+            "with the named effects".into(),
+        ] {
+            assert!(svg.contains(&text), "{file} lacks `{text}`");
+        }
+    }
 
     let applied = format!("{PROVENANCE}{}", std::fs::read_to_string(&copy).unwrap());
     let committed_path = root().join(format!("models/{DIAGNOSED}.toml"));
