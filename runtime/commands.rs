@@ -604,6 +604,12 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
                     report.mse_before[j],
                     report.mse_after[j]
                 );
+                let r = &report.regimes[j];
+                println!(
+                    "    residual correlates with velocity {:+.2}, its sign {:+.2}, acceleration \
+                     {:+.2}, gravity load {:+.2}; mean {:+.4} N m",
+                    r.velocity, r.velocity_sign, r.acceleration, r.gravity_load, r.mean
+                );
             }
             if report.effects.is_empty() {
                 println!("no significant missing effect found");

@@ -156,6 +156,9 @@ pub struct Regimes {
     pub velocity: f64,
     pub velocity_sign: f64,
     pub acceleration: f64,
+    /// Correlation with the model's gravity torque of the joint (a
+    /// configuration-dependent error: mass, COM, payload).
+    pub gravity_load: f64,
     pub mean: f64,
 }
 
@@ -317,6 +320,8 @@ struct Stacked {
     measured: DVector<f64>,
     qd: DVector<f64>,
     qdd: DVector<f64>,
+    /// The model's gravity torque.
+    gravity: DVector<f64>,
     group: Vec<usize>,
     dof: usize,
 }
@@ -584,6 +589,7 @@ fn stack(
     let mut group = Vec::with_capacity(rows);
     let mut qd = DVector::zeros(rows);
     let mut qdd = DVector::zeros(rows);
+    let mut gravity = DVector::zeros(rows);
     let mut inertial = vec![DVector::zeros(rows); 10 * n];
     let mut at = 0;
     for (g, traj) in trajectories.iter().enumerate() {
@@ -602,7 +608,9 @@ fn stack(
         for s in 0..traj.len() {
             let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
             let y = model.regressor(&row(traj.q()), &row(traj.qd()), &row(accel))?;
+            let load = model.gravity(&row(traj.q()))?;
             for i in 0..n {
+                gravity[at] = load[i];
                 residual[at] = traj.tau()[(s, i)] - predicted[(s, i)];
                 measured[at] = traj.tau()[(s, i)];
                 qd[at] = traj.qd()[(s, i)];
@@ -620,6 +628,7 @@ fn stack(
         measured,
         qd,
         qdd,
+        gravity,
         group,
         dof: n,
     };
@@ -1605,6 +1614,7 @@ fn regimes(data: &Stacked, candidates: &[Candidate]) -> Vec<Regimes> {
                 velocity: corr(Kind::ViscousFriction),
                 velocity_sign: corr(Kind::CoulombFriction),
                 acceleration: corr(Kind::Armature),
+                gravity_load: correlation(data, j, &data.gravity),
                 mean: rows.map(|r| data.residual[r]).sum::<f64>() / count,
             }
         })

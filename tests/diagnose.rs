@@ -282,6 +282,17 @@ fn payload_on_the_last_link() {
     add_point_mass(&mut truth.bodies[2].parameters, mass, com);
     let d = run(&truth);
     let text = serde_json::to_string(&d).unwrap();
+    // A payload's torque follows the configuration: the residual of the
+    // joints it loads correlates with their gravity torque.
+    for j in [1, 2] {
+        let r = &d.regimes[j];
+        assert!(r.gravity_load.abs() > 0.5, "joint {}: {text}", j + 1);
+        assert!(
+            r.gravity_load.abs() > r.velocity_sign.abs(),
+            "joint {}: {text}",
+            j + 1
+        );
+    }
     assert_eq!(d.effects.len(), 1, "{text}");
     let effect = &d.effects[0];
     assert_eq!(effect.kind, Kind::Payload, "{text}");
