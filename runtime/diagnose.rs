@@ -61,10 +61,11 @@
 //! through a base-parameter combination, such as the first link's mass and
 //! COM, which act only through its inertia about the first axis) is never
 //! named; if it would have been selected, a note says so. A named payload's
-//! COM component whose 95% confidence half-width exceeds
-//! [`Settings::com_resolution`] of the arm's size is reported as `null` with
-//! a note: the data do not determine it (typically the component along the
-//! joint axes, which acts only through couplings with the first joint).
+//! or link's COM (or first-moment) component whose 95% confidence
+//! half-width exceeds [`Settings::com_resolution`] of the arm's size is
+//! reported with its wide interval and a note: the data barely determine it
+//! (typically the component along the joint axes, which acts only through
+//! couplings with the first joint), so the torques barely depend on it.
 
 use nalgebra::{DMatrix, DVector, Vector3};
 use serde::Serialize;
@@ -172,9 +173,9 @@ pub struct Settings {
     /// The arm's size (m): a payload's centre of mass must lie within it
     /// (see [`reach`]); infinite accepts any.
     pub reach: f64,
-    /// A payload COM component is reported only when its 95% confidence
-    /// half-width is at most this fraction of the arm's size ([`reach`] of
-    /// the model; 1 m when the model has no description).
+    /// A COM component whose 95% confidence half-width exceeds this fraction
+    /// of the arm's size ([`reach`] of the model; 1 m when the model has no
+    /// description) gets a note that the data barely determine it.
     pub com_resolution: f64,
 }
 
@@ -1481,17 +1482,15 @@ fn effect(
         let mut com = Vec::new();
         let mut interval = Vec::new();
         for (axis, &(c, dc)) in ["x", "y", "z"].iter().zip(&values[1..]) {
-            if dc <= resolution {
-                com.push(json!(c));
-                interval.push(json!([c - dc, c + dc]));
-            } else {
-                com.push(Value::Null);
-                interval.push(Value::Null);
+            com.push(json!(c));
+            interval.push(json!([c - dc, c + dc]));
+            if dc > resolution {
                 notes.push(format!(
-                    "{}: the COM's {axis} component is not identifiable from these data \
-                     (fit {c:.3} m, 95% CI half-width {dc:.3} m > {resolution:.3} m); reported \
-                     as null — record motions that move the first joint together with the \
-                     others to determine it",
+                    "{}: the COM's {axis} component is poorly determined by these data \
+                     (fit {c:.3} m, 95% CI half-width {dc:.3} m > {resolution:.3} m): the \
+                     recorded torques barely depend on it, so --apply's use of the fit changes \
+                     little here, but treat the value as unknown — record motions that move the \
+                     first joint together with the others to determine it",
                     label(candidate)
                 ));
             }
@@ -1521,17 +1520,14 @@ fn effect(
         let mut moment = Vec::new();
         let mut interval = Vec::new();
         for (axis, &(h, dh)) in ["x", "y", "z"].iter().zip(values) {
-            if dh <= resolution * base_mass {
-                moment.push(json!(h));
-                interval.push(json!([h - dh, h + dh]));
-            } else {
-                moment.push(Value::Null);
-                interval.push(Value::Null);
+            moment.push(json!(h));
+            interval.push(json!([h - dh, h + dh]));
+            if dh > resolution * base_mass {
                 notes.push(format!(
-                    "{}: the first moment's {axis} component is not identifiable from these \
+                    "{}: the first moment's {axis} component is poorly determined by these \
                      data (fit {h:.4} kg m, 95% CI half-width {dh:.4} kg m, a COM uncertainty \
-                     of {:.3} m at the modelled mass > {resolution:.3} m); reported as null and \
-                     kept as modelled by --apply",
+                     of {:.3} m at the modelled mass > {resolution:.3} m): treat the value as \
+                     unknown",
                     label(candidate),
                     dh / base_mass
                 ));
