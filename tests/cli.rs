@@ -1,6 +1,6 @@
 //! The `sdnn` command line: outputs, errors and exit codes.
 
-use crate::util::{Dir, root, sdnn};
+use crate::util::{Dir, root, sdnn, sdnn_json};
 
 #[test]
 fn tau_command_evaluates_the_compiled_model() {
@@ -116,9 +116,7 @@ fn wrong_joint_count_and_unknown_model_are_errors() {
 
 #[test]
 fn models_command_lists_models_as_json() {
-    let run = sdnn(&["models", "--format", "json"]);
-    assert!(run.status.success());
-    let list: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let list = sdnn_json(&["models", "--format", "json"]);
     let names: Vec<&str> = list
         .as_array()
         .unwrap()

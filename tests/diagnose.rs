@@ -10,7 +10,7 @@ use sdnn::sim::simulate::{SimConfig, simulate};
 use sdnn::study::{self, StudyConfig};
 use sdnn::trajectory::Trajectory;
 
-use crate::util::{Dir, assert_close, oracle, root, sdnn};
+use crate::util::{Dir, assert_close, oracle, root, sdnn_json};
 
 const NOMINAL: &str = "kinova_gen3_lite_3dof";
 
@@ -505,13 +505,7 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
     args.extend(["--format", "json", "--plots", plots.to_str().unwrap()]);
     args.extend(["--apply", "--toml", copy.to_str().unwrap(), "--data"]);
     args.extend(files.iter().map(String::as_str));
-    let run = sdnn(&args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let d: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let d = sdnn_json(&args);
     let effects = d["effects"].as_array().unwrap();
     let found: Vec<(&str, u64)> = effects
         .iter()
@@ -587,13 +581,7 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
     ];
     args.push("--data");
     args.extend(files.iter().map(String::as_str));
-    let run = sdnn(&args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let evaluated: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let evaluated = sdnn_json(&args);
     // mse_after is leave-one-trajectory-out; the regenerated model holds
     // the fit to all the data, so its MSE on them is the in-sample MSE:
     // at most the held-out one (up to 5% for the LM/least-squares

@@ -3,7 +3,7 @@
 
 use sdnn::study::{self, StudyConfig};
 
-use crate::util::{Dir, sdnn};
+use crate::util::{Dir, sdnn, sdnn_json};
 
 fn small() -> StudyConfig {
     StudyConfig {
@@ -78,22 +78,11 @@ fn evaluate_prints_the_json_contract_and_ranks_models() {
         String::from_utf8_lossy(&run.stderr)
     );
     let file = out.join("trajectory_01.csv");
-    let evaluate = |model: &str| -> serde_json::Value {
-        let run = sdnn(&[
-            "evaluate",
-            "--model",
-            model,
-            "--data",
-            file.to_str().unwrap(),
-            "--format",
-            "json",
-        ]);
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-        serde_json::from_slice(&run.stdout).unwrap()
+    let evaluate = |model: &str| {
+        let data = file.to_str().unwrap();
+        sdnn_json(&[
+            "evaluate", "--model", model, "--data", data, "--format", "json",
+        ])
     };
     let nominal = evaluate("kinova_gen3_lite_3dof");
     let truth = evaluate("kinova_gen3_lite_3dof_plant");
@@ -221,7 +210,7 @@ fn study_on_a_measured_recording_splits_it_in_time() {
         String::from_utf8_lossy(&simulate.stderr)
     );
     std::fs::rename(data.path().join("trajectory_01.csv"), &recording).unwrap();
-    let run = sdnn(&[
+    let result = sdnn_json(&[
         "study",
         "--model",
         "kinova_gen3_lite_3dof",
@@ -240,12 +229,6 @@ fn study_on_a_measured_recording_splits_it_in_time() {
         "--format",
         "json",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let result: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(result["plant"], "measured data");
     assert_eq!(result["train_trajectories"], serde_json::json!([0, 1, 2]));
     assert_eq!(result["test_trajectories"], serde_json::json!([3]));

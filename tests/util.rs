@@ -79,3 +79,14 @@ pub fn sdnn(args: &[&str]) -> Output {
         .output()
         .expect("run sdnn")
 }
+
+/// Runs the `sdnn` binary, which must succeed, and parses its JSON output.
+pub fn sdnn_json(args: &[&str]) -> serde_json::Value {
+    let run = sdnn(args);
+    assert!(
+        run.status.success(),
+        "sdnn {args:?}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    serde_json::from_slice(&run.stdout).expect("JSON output")
+}
