@@ -608,8 +608,9 @@ fn stack(
             .ok_or_else(|| anyhow::anyhow!("trajectory {} has no accelerations", g + 1))?;
         for s in 0..traj.len() {
             let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
-            let y = model.regressor(&row(traj.q()), &row(traj.qd()), &row(accel))?;
-            let load = model.gravity(&row(traj.q()))?;
+            let q = row(traj.q());
+            let y = model.regressor(&q, &row(traj.qd()), &row(accel))?;
+            let load = model.gravity(&q)?;
             for i in 0..n {
                 gravity[at] = load[i];
                 residual[at] = traj.tau()[(s, i)] - predicted[(s, i)];
@@ -1308,13 +1309,8 @@ fn significant(
     full: &Fit,
     min_t: f64,
 ) -> Option<Vec<f64>> {
-    let (_, se) = fit_all(m, candidates, trial)?;
+    let (_, se) = fit_robust(m, candidates, trial)?;
     let theta = &full.theta;
-    // The larger of the least-squares and the jackknife standard errors.
-    let se = match jackknife_half_widths(m, candidates, trial, theta) {
-        Some(half) => se.zip_map(&half, |s, h| s.max(h / 1.96)),
-        None => se,
-    };
     let added = *trial.last()?;
     let offset: usize = trial[..trial.len() - 1]
         .iter()
@@ -1356,10 +1352,9 @@ fn describe(
     resolution: f64,
     notes: &mut Vec<String>,
 ) -> Vec<Effect> {
-    let Some((fit, se)) = fit_all(m, candidates, selected) else {
+    let Some((fit, se)) = fit_robust(m, candidates, selected) else {
         return Vec::new();
     };
-    let jackknife = jackknife_half_widths(m, candidates, selected, &fit.theta);
     let all = m.applied(&columns_of(candidates, selected));
     let sse_none = sse_per_joint(m, &[], &DVector::zeros(0));
     let sse_with = sse_per_joint(m, &all, &fit.coefficients);
@@ -1369,13 +1364,7 @@ fn describe(
         let candidate = &candidates[c];
         let w = width(candidate);
         let values: Vec<(f64, f64)> = (offset..offset + w)
-            .map(|k| {
-                let half = 1.96 * se[k];
-                (
-                    fit.theta[k],
-                    jackknife.as_ref().map_or(half, |j| half.max(j[k])),
-                )
-            })
+            .map(|k| (fit.theta[k], 1.96 * se[k]))
             .collect();
         offset += w;
         let without: Vec<usize> = selected
@@ -1403,6 +1392,23 @@ fn describe(
         effects.push(effect(candidate, &values, share, resolution, notes));
     }
     effects
+}
+
+/// [`fit_all`] with each standard error the larger of the least-squares and
+/// the jackknife one (as a normal-equivalent error: the jackknife's 95%
+/// half-width over 1.96), which significance tests and reported intervals
+/// use.
+fn fit_robust(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> Option<(Fit, DVector<f64>)> {
+    let (fit, se) = fit_all(m, candidates, selected)?;
+    let se = match jackknife_half_widths(m, candidates, selected, &fit.theta) {
+        Some(half) => se.zip_map(&half, |s, h| s.max(h / 1.96)),
+        None => se,
+    };
+    Some((fit, se))
 }
 
 /// 95% half-widths of the parameters from the leave-one-trajectory-out

@@ -58,6 +58,17 @@ pub enum Centering {
     Trailing,
 }
 
+impl Centering {
+    /// `Centered` for the configuration's `centered: true`.
+    fn of(centered: bool) -> Centering {
+        if centered {
+            Centering::Centered
+        } else {
+            Centering::Trailing
+        }
+    }
+}
+
 /// Keeps every `factor`-th sample, starting with the first.
 ///
 /// Plain decimation rather than block averaging: each kept row stays a real,
@@ -324,11 +335,7 @@ impl Preprocess {
         match self.filter {
             Filter::None => Ok(x.to_vec()),
             Filter::Sma { window, centered } => {
-                let c = if centered {
-                    Centering::Centered
-                } else {
-                    Centering::Trailing
-                };
+                let c = Centering::of(centered);
                 moving_average(&moving_average(x, window, c)?, window, c)
             }
             Filter::SavitzkyGolay { window, order } => savitzky_golay(x, window, order, 0, dt),
@@ -340,11 +347,7 @@ impl Preprocess {
         match self.filter {
             Filter::None => Ok((v.to_vec(), central_difference(v, dt)?)),
             Filter::Sma { window, centered } => {
-                let c = if centered {
-                    Centering::Centered
-                } else {
-                    Centering::Trailing
-                };
+                let c = Centering::of(centered);
                 let smooth = moving_average(v, window, c)?;
                 let acc = moving_average(&central_difference(&smooth, dt)?, window, c)?;
                 Ok((smooth, acc))
