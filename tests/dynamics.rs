@@ -241,6 +241,21 @@ proptest! {
     }
 }
 
+proptest! {
+    /// The vectorized sin_cos_n gives each angle exactly `sin_cos`'s bits,
+    /// whatever its lane and neighbours.
+    #[test]
+    fn sin_cos_n_lanes_equal_sin_cos(x in proptest::array::uniform5(-1.0e5..1.0e5f64)) {
+        use sdnn::models::panda::{sin_cos, sin_cos_n};
+        let (s, c) = sin_cos_n(x);
+        for i in 0..5 {
+            let (si, ci) = sin_cos(x[i]);
+            prop_assert_eq!(s[i].to_bits(), si.to_bits());
+            prop_assert_eq!(c[i].to_bits(), ci.to_bits());
+        }
+    }
+}
+
 /// The generated sin_cos agrees with the standard library to about one ulp
 /// on joint-angle ranges and falls back to it beyond.
 #[test]

@@ -139,19 +139,33 @@ impl Function<'_> {
             .collect()
     }
 
-    /// Bindings of the used inputs: sin/cos once per joint, velocities, signs.
+    /// Bindings of the used inputs: the sines and cosines all at once (one
+    /// vectorized `sin_cos_n`), then velocities, accelerations and signs.
     fn prologue(&self, used: &[Input]) -> Vec<TokenStream> {
+        let has = |input: Input| used.contains(&input);
         let mut lines = Vec::new();
+        let angles: Vec<usize> = (0..self.dof)
+            .filter(|&i| has(Input::Sin(i)) || has(Input::Cos(i)))
+            .collect();
+        if !angles.is_empty() {
+            let binding = |input: Input| {
+                if has(input) {
+                    let ident = input.ident();
+                    quote! { #ident }
+                } else {
+                    quote! { _ }
+                }
+            };
+            let sines = angles.iter().map(|&i| binding(Input::Sin(i)));
+            let cosines = angles.iter().map(|&i| binding(Input::Cos(i)));
+            let qs = angles.iter().map(|&i| {
+                let index = int(i);
+                quote! { q[#index] }
+            });
+            lines.push(quote! { let ([#(#sines),*], [#(#cosines),*]) = sin_cos_n([#(#qs),*]); });
+        }
         for i in 0..self.dof {
             let index = int(i);
-            let has = |input: Input| used.contains(&input);
-            let (s, c) = (Input::Sin(i).ident(), Input::Cos(i).ident());
-            match (has(Input::Sin(i)), has(Input::Cos(i))) {
-                (true, true) => lines.push(quote! { let (#s, #c) = sin_cos(q[#index]); }),
-                (true, false) => lines.push(quote! { let #s = sin_cos(q[#index]).0; }),
-                (false, true) => lines.push(quote! { let #c = sin_cos(q[#index]).1; }),
-                (false, false) => {}
-            }
             if has(Input::Qd(i)) {
                 let v = Input::Qd(i).ident();
                 lines.push(quote! { let #v = qd[#index]; });
@@ -252,24 +266,119 @@ impl Function<'_> {
                 quote! { #ident }
             }
             Node::Const(c) => literal(*c),
-            Node::Add(ops) => {
-                let mut tokens = self.expr(ops[0], names);
-                for &op in &ops[1..] {
-                    tokens = match self.negated(op, names) {
-                        Some(magnitude) => quote! { #tokens - #magnitude },
-                        None => {
-                            let term = self.expr(op, names);
-                            quote! { #tokens + #term }
-                        }
-                    };
-                }
-                tokens
-            }
+            Node::Add(ops) => self.sum(ops, names),
             Node::Mul(ops) => self.product(ops, names),
             Node::Neg(x) => {
                 let inner = self.factor(*x, names);
                 quote! { -#inner }
             }
+        }
+    }
+
+    /// `a + b * c - d * e` as `a.add_mul(b, c).sub_mul(d, e)`: each product
+    /// term is a fused multiply-add where the target has FMA (see the
+    /// generated `AddMul`), read left to right like the sum it is.
+    fn sum(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> TokenStream {
+        let terms = self.ordered_terms(ops, names);
+        let mut tokens = self.expr(terms[0], names);
+        // Whether `tokens` can take a method call without parentheses.
+        let mut postfix = self.is_postfix(terms[0], names);
+        for &term in &terms[1..] {
+            if let Some((subtract, a, b)) = self.product_term(term, names) {
+                let receiver = if postfix {
+                    tokens
+                } else if let Node::Const(c) = self.dag.nodes[terms[0]] {
+                    typed_literal(c)
+                } else {
+                    quote! { (#tokens) }
+                };
+                tokens = if subtract {
+                    quote! { #receiver.sub_mul(#a, #b) }
+                } else {
+                    quote! { #receiver.add_mul(#a, #b) }
+                };
+                postfix = true;
+                continue;
+            }
+            tokens = match self.negated(term, names) {
+                Some(magnitude) => quote! { #tokens - #magnitude },
+                None => {
+                    let expr = self.expr(term, names);
+                    quote! { #tokens + #expr }
+                }
+            };
+            postfix = false;
+        }
+        tokens
+    }
+
+    /// The terms of a sum in emission order, unnamed inner sums spliced in.
+    /// The order stays: the tracer puts the latest-computed term (a child's
+    /// wrench) last, off the chain of the others.
+    fn ordered_terms(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> Vec<NodeId> {
+        let mut terms = Vec::new();
+        self.splice_terms(ops, names, &mut terms);
+        terms
+    }
+
+    /// The terms of a sum, unnamed inner sums replaced by their terms.
+    fn splice_terms(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>, out: &mut Vec<NodeId>) {
+        for &op in ops {
+            match &self.dag.nodes[op] {
+                Node::Add(inner) if !names.contains_key(&op) => {
+                    self.splice_terms(inner, names, out)
+                }
+                _ => out.push(op),
+            }
+        }
+    }
+
+    /// Whether the expression of `id` is a name or ends in a method call.
+    fn is_postfix(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> bool {
+        names.contains_key(&id)
+            || match &self.dag.nodes[id] {
+                Node::Input(_) => true,
+                Node::Add(ops) => {
+                    let terms = self.ordered_terms(ops, names);
+                    terms.len() > 1 && self.product_term(terms[terms.len() - 1], names).is_some()
+                }
+                _ => false,
+            }
+    }
+
+    /// A sum's term `±(a * b)` that fuses into the sum: whether it is
+    /// subtracted, then `a` (all factors but the last, a leading constant
+    /// by magnitude) and `b`.
+    fn product_term(
+        &self,
+        id: NodeId,
+        names: &HashMap<NodeId, Ident>,
+    ) -> Option<(bool, TokenStream, TokenStream)> {
+        if names.contains_key(&id) {
+            return None;
+        }
+        match &self.dag.nodes[id] {
+            Node::Neg(x) => self
+                .product_term(*x, names)
+                .map(|(subtract, a, b)| (!subtract, a, b)),
+            Node::Mul(ops) => {
+                let (last, head) = ops.split_last()?;
+                let b = self.expr(*last, names);
+                let (subtract, a) = match self.dag.nodes[head[0]] {
+                    Node::Const(c) if !names.contains_key(&head[0]) => {
+                        let mut a = literal(c.abs());
+                        for &op in &head[1..] {
+                            let factor = self.factor(op, names);
+                            a = quote! { #a * #factor };
+                        }
+                        (c < 0.0, a)
+                    }
+                    _ if head.len() == 1 => (false, self.expr(head[0], names)),
+                    _ => (false, self.product(head, names)),
+                };
+                Some((subtract, a, b))
+            }
+            _ => None,
         }
     }
 
@@ -316,7 +425,8 @@ impl Function<'_> {
         let inner = self.expr(id, names);
         let needs_parens = !names.contains_key(&id)
             && match &self.dag.nodes[id] {
-                Node::Add(_) | Node::Neg(_) => true,
+                Node::Add(_) => !self.is_postfix(id, names),
+                Node::Neg(_) => true,
                 Node::Const(c) => *c < 0.0,
                 Node::Mul(ops) => matches!(self.dag.nodes[ops[0]], Node::Const(c) if c < 0.0),
                 Node::Input(_) => false,
@@ -342,6 +452,17 @@ pub fn int(value: usize) -> proc_macro2::Literal {
     proc_macro2::Literal::usize_unsuffixed(value)
 }
 
+/// A float literal with an `f64` suffix, parenthesized if negative: a
+/// receiver of a method call.
+fn typed_literal(value: f64) -> TokenStream {
+    let lit = syn::LitFloat::new(&format!("{:?}f64", value.abs()), Span::call_site());
+    if value.is_sign_negative() && value != 0.0 {
+        quote! { (-#lit) }
+    } else {
+        quote! { #lit }
+    }
+}
+
 /// A float literal with the shortest representation that round-trips.
 pub fn literal(value: f64) -> TokenStream {
     let text = format!("{:?}", value.abs());
@@ -350,5 +471,54 @@ pub fn literal(value: f64) -> TokenStream {
         quote! { -#lit }
     } else {
         quote! { #lit }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn emitted(dag: &Dag, root: NodeId) -> String {
+        let inputs = [Input::Qd(0), Input::Qd(1), Input::Qd(2), Input::Qd(3)];
+        let function = Function {
+            name: "f",
+            doc: "",
+            arguments: &[Argument::Qd],
+            dof: 4,
+            inputs: &inputs,
+            dag,
+            roots: &[root],
+            shape: Shape::Vector(1),
+        };
+        function.tokens().to_string()
+    }
+
+    #[test]
+    fn products_in_a_sum_fuse_in_order() {
+        let mut dag = Dag::default();
+        let x: Vec<NodeId> = (0..4).map(|i| dag.input(i)).collect();
+        let k = dag.constant(-2.5);
+        let scaled = dag.mul(vec![k, x[1]]);
+        let product = dag.mul(vec![x[2], x[3]]);
+        let root = dag.add(vec![x[0], scaled, product]);
+        let code = emitted(&dag, root);
+        assert!(
+            code.contains("qd1 . sub_mul (2.5 , qd2) . add_mul (qd3 , qd4)"),
+            "{code}"
+        );
+    }
+
+    #[test]
+    fn a_leading_product_is_a_plain_multiply_and_a_constant_gets_a_type() {
+        let mut dag = Dag::default();
+        let x: Vec<NodeId> = (0..4).map(|i| dag.input(i)).collect();
+        let first = dag.mul(vec![x[0], x[1]]);
+        let second = dag.mul(vec![x[2], x[3]]);
+        let root = dag.add(vec![first, second]);
+        assert!(emitted(&dag, root).contains("(qd1 * qd2) . add_mul (qd3 , qd4)"));
+        let one = dag.constant(1.0);
+        let root = dag.add(vec![one, second]);
+        let code = emitted(&dag, root);
+        assert!(code.contains("1.0f64 . add_mul (qd3 , qd4)"), "{code}");
     }
 }

@@ -17,6 +17,7 @@ use crate::lagrangian::{self, RigidBodyTorque};
 use crate::program::{Dag, NodeId, Poly};
 use crate::recursive::{self, Traced};
 use crate::reduce::Chain;
+use crate::support;
 
 /// Names of the ten inertial parameters of body i, Pinocchio's order.
 pub const INERTIAL_NAMES: [&str; 10] = [
@@ -82,17 +83,11 @@ pub fn generate(
         items.push(tokens);
     }
     let constants = model.constants();
-    let sin_cos = sin_cos_function();
+    let support = support::items();
     let file: TokenStream = quote! {
         #constants
         #(#items)*
-        /// Coulomb friction direction: sign(x), with sign(0) = 0.
-        #[inline]
-        #[must_use]
-        pub fn sign(x: f64) -> f64 {
-            if x > 0.0 { 1.0 } else if x < 0.0 { -1.0 } else { 0.0 }
-        }
-        #sin_cos
+        #support
     };
     let syntax = syn::parse2::<syn::File>(file)
         .map_err(|e| format!("generated code does not parse: {e}"))?;
@@ -104,48 +99,6 @@ pub fn generate(
         operations,
         seconds: start.elapsed().as_secs_f64(),
     })
-}
-
-/// sin and cos within about one ulp, several times faster than two libm
-/// calls: Cody-Waite reduction by pi/2 (pi/2 split in 33 + 33 + 53 bits, so
-/// k * part is exact for |k| < 2^20), then Taylor polynomials on
-/// [-pi/4, pi/4] (the first omitted terms are below 1e-16 relative),
-/// evaluated by Estrin's scheme.
-fn sin_cos_function() -> TokenStream {
-    quote! {
-        /// sin(x) and cos(x) to about one ulp; std beyond |x| = 1e5.
-        #[inline]
-        #[must_use]
-        #[allow(clippy::excessive_precision, clippy::approx_constant)]
-        pub fn sin_cos(x: f64) -> (f64, f64) {
-            if !(x.abs() <= 1.0e5) {
-                return x.sin_cos();
-            }
-            // Round to nearest by the 1.5 * 2^52 shift: exact for |x| <= 1e5 and
-            // one instruction, where `f64::round` is a libm call on baseline x86-64.
-            let k = (x * 0.6366197723675814 + 6755399441055744.0) - 6755399441055744.0;
-            let r = ((x - k * 1.5707963267341256) - k * 6.077100506303966e-11) - k * 2.0222662487959506e-21;
-            // Estrin's scheme: short dependency chains, both polynomials in parallel.
-            let (z, z2) = (r * r, r * r * r * r);
-            let z4 = z2 * z2;
-            let sp = (-0.16666666666666666 + z * 0.008333333333333333)
-                + z2 * (-0.0001984126984126984 + z * 2.7557319223985893e-6)
-                + z4 * ((-2.505210838544172e-8 + z * 1.6059043836821613e-10)
-                    + z2 * (-7.647163731819816e-13 + z * 2.8114572543455206e-15));
-            let cp = (-0.5 + z * 0.041666666666666664)
-                + z2 * (-0.001388888888888889 + z * 2.48015873015873e-5)
-                + z4 * ((-2.755731922398589e-7 + z * 2.08767569878681e-9)
-                    + z2 * (-1.1470745597729725e-11 + z * 4.779477332387385e-14));
-            let s = r + r * z * sp;
-            let c = 1.0 + z * cp;
-            match (k as i64) & 3 {
-                0 => (s, c),
-                1 => (c, -s),
-                2 => (-s, -c),
-                _ => (-c, s),
-            }
-        }
-    }
 }
 
 fn header(

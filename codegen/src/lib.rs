@@ -24,6 +24,8 @@ pub mod program;
 pub mod recursive;
 #[cfg(feature = "symbolic")]
 pub mod session;
+#[cfg(feature = "symbolic")]
+mod support;
 
 #[cfg(feature = "symbolic")]
 pub use config::{Config, Outcome, Report, registry};

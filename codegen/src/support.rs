@@ -1,0 +1,118 @@
+//! The helpers every generated file carries after its functions: `sign`,
+//! the fused multiply-add `AddMul` the emitted sums use, and `sin_cos`.
+
+use proc_macro2::TokenStream;
+use quote::quote;
+
+/// The helper items, in file order.
+pub fn items() -> TokenStream {
+    let sin_cos = sin_cos();
+    quote! {
+        /// Coulomb friction direction: sign(x), with sign(0) = 0.
+        #[inline]
+        #[must_use]
+        pub fn sign(x: f64) -> f64 {
+            if x > 0.0 { 1.0 } else if x < 0.0 { -1.0 } else { 0.0 }
+        }
+        /// `self + a * b` and `self - a * b`: one fused instruction and one
+        /// rounding where the target has FMA (x86-64 built for a CPU with FMA,
+        /// as this repository's `.cargo/config.toml` does; every aarch64), a
+        /// multiply and an add elsewhere.
+        trait AddMul {
+            fn add_mul(self, a: f64, b: f64) -> f64;
+            fn sub_mul(self, a: f64, b: f64) -> f64;
+        }
+        impl AddMul for f64 {
+            #[inline(always)]
+            fn add_mul(self, a: f64, b: f64) -> f64 {
+                if cfg!(any(target_feature = "fma", target_arch = "aarch64")) {
+                    a.mul_add(b, self)
+                } else {
+                    self + a * b
+                }
+            }
+            #[inline(always)]
+            fn sub_mul(self, a: f64, b: f64) -> f64 {
+                if cfg!(any(target_feature = "fma", target_arch = "aarch64")) {
+                    (-a).mul_add(b, self)
+                } else {
+                    self - a * b
+                }
+            }
+        }
+        #sin_cos
+    }
+}
+
+/// sin and cos within about one ulp, several times faster than two libm
+/// calls: Cody-Waite reduction by pi/2 (pi/2 split in 33 + 33 + 53 bits, so
+/// k * part is exact for |k| < 2^20), then Taylor polynomials on
+/// [-pi/4, pi/4] (the first omitted terms are below 1e-16 relative),
+/// evaluated by Estrin's scheme; the quadrant is applied with bit
+/// operations, so a function's angles are computed together, in vector
+/// lanes (four per instruction with AVX2).
+fn sin_cos() -> TokenStream {
+    quote! {
+        /// sin(x) and cos(x) to about one ulp; std beyond |x| = 1e5.
+        #[inline]
+        #[must_use]
+        pub fn sin_cos(x: f64) -> (f64, f64) {
+            let ([s], [c]) = sin_cos_n([x]);
+            (s, c)
+        }
+        /// `sin_cos` of each angle, lane by lane (the compiler vectorizes the
+        /// loop); std for all if any |x| exceeds 1e5.
+        #[inline]
+        #[must_use]
+        #[allow(clippy::excessive_precision, clippy::approx_constant)]
+        pub fn sin_cos_n<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
+            if !x.iter().all(|x| x.abs() <= 1.0e5) {
+                return (x.map(f64::sin), x.map(f64::cos));
+            }
+            let mut sin = [0.0; N];
+            let mut cos = [0.0; N];
+            for i in 0..N {
+                let x = x[i];
+                // Round to nearest by the 1.5 * 2^52 shift: exact for |x| <= 1e5;
+                // the low bits of `shifted` are the quadrant k mod 4.
+                let shifted = 6755399441055744.0f64.add_mul(x, 0.6366197723675814);
+                let k = shifted - 6755399441055744.0;
+                let r = x
+                    .sub_mul(k, 1.5707963267341256)
+                    .sub_mul(k, 6.077100506303966e-11)
+                    .sub_mul(k, 2.0222662487959506e-21);
+                // Estrin's scheme: short dependency chains.
+                let z = r * r;
+                let z2 = z * z;
+                let z4 = z2 * z2;
+                let sp = (-0.16666666666666666f64)
+                    .add_mul(z, 0.008333333333333333)
+                    .add_mul(z2, (-0.0001984126984126984f64).add_mul(z, 2.7557319223985893e-6))
+                    .add_mul(
+                        z4,
+                        (-2.505210838544172e-8f64)
+                            .add_mul(z, 1.6059043836821613e-10)
+                            .add_mul(z2, (-7.647163731819816e-13f64).add_mul(z, 2.8114572543455206e-15)),
+                    );
+                let cp = (-0.5f64)
+                    .add_mul(z, 0.041666666666666664)
+                    .add_mul(z2, (-0.001388888888888889f64).add_mul(z, 2.48015873015873e-5))
+                    .add_mul(
+                        z4,
+                        (-2.755731922398589e-7f64)
+                            .add_mul(z, 2.08767569878681e-9)
+                            .add_mul(z2, (-1.1470745597729725e-11f64).add_mul(z, 4.779477332387385e-14)),
+                    );
+                let s = r.add_mul(r * z, sp).to_bits();
+                let c = 1.0f64.add_mul(z, cp).to_bits();
+                // Odd quadrants swap sin and cos; sin changes sign in quadrants
+                // 2 and 3, cos in 1 and 2.
+                let n = shifted.to_bits();
+                let swap = (n & 1).wrapping_neg();
+                sin[i] = f64::from_bits(((s & !swap) | (c & swap)) ^ ((n & 2) << 62));
+                cos[i] = f64::from_bits(((c & !swap) | (s & swap)) ^ ((n.wrapping_add(1) & 2) << 62));
+            }
+            (sin, cos)
+        }
+    }
+}
