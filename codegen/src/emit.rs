@@ -283,12 +283,12 @@ impl Function<'_> {
         let mut tokens = self.expr(terms[0], names);
         // Whether `tokens` can take a method call without parentheses.
         let mut postfix = self.is_postfix(terms[0], names);
-        for &term in &terms[1..] {
+        for (i, &term) in terms.iter().enumerate().skip(1) {
             if let Some((subtract, a, b)) = self.product_term(term, names) {
                 let receiver = if postfix {
                     tokens
-                } else if let Node::Const(c) = self.dag.nodes[terms[0]] {
-                    typed_literal(c)
+                } else if let (1, Node::Const(c)) = (i, &self.dag.nodes[terms[0]]) {
+                    typed_literal(*c)
                 } else {
                     quote! { (#tokens) }
                 };
@@ -313,11 +313,19 @@ impl Function<'_> {
     }
 
     /// The terms of a sum in emission order, unnamed inner sums spliced in.
-    /// The order stays: the tracer puts the latest-computed term (a child's
+    /// A constant leads (then the first product fuses too); otherwise the
+    /// order stays: the tracer puts the latest-computed term (a child's
     /// wrench) last, off the chain of the others.
     fn ordered_terms(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> Vec<NodeId> {
         let mut terms = Vec::new();
         self.splice_terms(ops, names, &mut terms);
+        if let Some(at) = terms
+            .iter()
+            .position(|&t| matches!(self.dag.nodes[t], Node::Const(_)))
+        {
+            let constant = terms.remove(at);
+            terms.insert(0, constant);
+        }
         terms
     }
 
@@ -453,7 +461,7 @@ pub fn int(value: usize) -> proc_macro2::Literal {
 }
 
 /// A float literal with an `f64` suffix, parenthesized if negative: a
-/// receiver of a method call.
+/// receiver of a method call (`1.0f64.add_mul(..)`).
 fn typed_literal(value: f64) -> TokenStream {
     let lit = syn::LitFloat::new(&format!("{:?}f64", value.abs()), Span::call_site());
     if value.is_sign_negative() && value != 0.0 {
@@ -515,7 +523,8 @@ mod tests {
         let first = dag.mul(vec![x[0], x[1]]);
         let second = dag.mul(vec![x[2], x[3]]);
         let root = dag.add(vec![first, second]);
-        assert!(emitted(&dag, root).contains("(qd1 * qd2) . add_mul (qd3 , qd4)"));
+        let code = emitted(&dag, root);
+        assert!(code.contains("(qd1 * qd2) . add_mul (qd3 , qd4)"), "{code}");
         let one = dag.constant(1.0);
         let root = dag.add(vec![one, second]);
         let code = emitted(&dag, root);
