@@ -348,8 +348,18 @@ impl Function<'_> {
                 Node::Input(_) => true,
                 Node::Add(ops) => {
                     let terms = self.ordered_terms(ops, names);
-                    terms.len() > 1 && self.product_term(terms[terms.len() - 1], names).is_some()
+                    terms.len() > 1 && self.fuses(terms[terms.len() - 1], names)
                 }
+                _ => false,
+            }
+    }
+
+    /// Whether `id`, as a sum's term, is an unnamed `±(a * b)` that fuses.
+    fn fuses(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> bool {
+        !names.contains_key(&id)
+            && match &self.dag.nodes[id] {
+                Node::Mul(_) => true,
+                Node::Neg(x) => self.fuses(*x, names),
                 _ => false,
             }
     }
@@ -362,7 +372,7 @@ impl Function<'_> {
         id: NodeId,
         names: &HashMap<NodeId, Ident>,
     ) -> Option<(bool, TokenStream, TokenStream)> {
-        if names.contains_key(&id) {
+        if !self.fuses(id, names) {
             return None;
         }
         match &self.dag.nodes[id] {
@@ -374,12 +384,7 @@ impl Function<'_> {
                 let b = self.expr(*last, names);
                 let (subtract, a) = match self.dag.nodes[head[0]] {
                     Node::Const(c) if !names.contains_key(&head[0]) => {
-                        let mut a = literal(c.abs());
-                        for &op in &head[1..] {
-                            let factor = self.factor(op, names);
-                            a = quote! { #a * #factor };
-                        }
-                        (c < 0.0, a)
+                        (c < 0.0, self.times(literal(c.abs()), &head[1..], names))
                     }
                     _ if head.len() == 1 => (false, self.expr(head[0], names)),
                     _ => (false, self.product(head, names)),
@@ -392,15 +397,24 @@ impl Function<'_> {
 
     /// `a * b * c`, a leading constant first and unparenthesized.
     fn product(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> TokenStream {
-        let mut tokens = match self.dag.nodes[ops[0]] {
+        let lead = match self.dag.nodes[ops[0]] {
             Node::Const(c) if !names.contains_key(&ops[0]) => literal(c),
             _ => self.factor(ops[0], names),
         };
-        for &op in &ops[1..] {
+        self.times(lead, &ops[1..], names)
+    }
+
+    /// `lead * f1 * f2 ...`.
+    fn times(
+        &self,
+        lead: TokenStream,
+        factors: &[NodeId],
+        names: &HashMap<NodeId, Ident>,
+    ) -> TokenStream {
+        factors.iter().fold(lead, |tokens, &op| {
             let factor = self.factor(op, names);
-            tokens = quote! { #tokens * #factor };
-        }
-        tokens
+            quote! { #tokens * #factor }
+        })
     }
 
     /// For a term that reads best subtracted (`-x`, `-k * x`, `-k`), the
@@ -414,12 +428,7 @@ impl Function<'_> {
             Node::Const(c) if *c < 0.0 => Some(literal(-c)),
             Node::Mul(ops) => match self.dag.nodes[ops[0]] {
                 Node::Const(c) if c < 0.0 && !names.contains_key(&ops[0]) => {
-                    let mut tokens = literal(-c);
-                    for &op in &ops[1..] {
-                        let factor = self.factor(op, names);
-                        tokens = quote! { #tokens * #factor };
-                    }
-                    Some(tokens)
+                    Some(self.times(literal(-c), &ops[1..], names))
                 }
                 _ => None,
             },
