@@ -135,12 +135,21 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
 
 /// The compiled model with this name, or an error listing the names.
 pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
+    if let Some(path) = model_path(name) {
+        return Ok(crate::described::Described::load(&path)?);
+    }
     model(name).with_context(|| {
         format!(
-            "no compiled model named `{name}`; compiled models: {} (add models/{name}.toml and rebuild)",
+            "no compiled model named `{name}`; compiled models: {} (add models/{name}.toml and rebuild, or pass a description file path ending in .toml)",
             model_names().join(", ")
         )
     })
+}
+
+/// The description file a `--model` argument names, when it is a path
+/// (ends in `.toml`) rather than a compiled model's name.
+pub fn model_path(name: &str) -> Option<std::path::PathBuf> {
+    name.ends_with(".toml").then(|| std::path::PathBuf::from(name))
 }
 
 fn tau(

@@ -8,106 +8,20 @@ use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::DMatrix;
 
 use crate::cli::{AngleArg, Format, find_model};
+use crate::diagnose::Diagnosis;
+use crate::dynamics::Dynamics;
+use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed};
 use crate::mlp::{Dataset, Mlp};
-use crate::preprocess::{Filter, Preprocess};
-use crate::study::{self, StudyConfig, model_torques, mse_per_joint};
+use crate::dynamics::model_torques;
+use crate::study::{self, StudyConfig, mse_per_joint};
 use crate::trajectory::{
-    ReadOptions, Trajectory, read_csv, read_states_csv, write_csv, write_torques, write_torques_csv,
+    ReadOptions, read_csv, read_states_csv, write_csv, write_torques, write_torques_csv,
 };
 
 /// The default virtual robot: the thesis model plus joint friction and armature.
 pub const DEFAULT_PLANT: &str = "kinova_gen3_lite_3dof_plant";
 /// The thesis's analytical model.
 pub const DEFAULT_NOMINAL: &str = "kinova_gen3_lite_3dof";
-
-/// Options of reading measured CSV files.
-#[derive(Debug, Args, Clone)]
-pub struct InputArgs {
-    /// Unit of q, qd and qdd in the files (Kinova's API logs degrees).
-    #[arg(long, value_enum, default_value_t)]
-    pub angles: AngleArg,
-    /// Resample jittery timestamps to this uniform rate (Hz) by linear interpolation.
-    #[arg(long)]
-    pub resample: Option<f64>,
-    /// Map a file column to a contract column, e.g. `--column time=t --column pos1=q1`.
-    #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = parse_mapping)]
-    pub columns: Vec<(String, String)>,
-    /// File columns to ignore (extra columns are an error otherwise).
-    #[arg(long = "ignore-column", value_name = "NAME")]
-    pub ignored: Vec<String>,
-}
-
-fn parse_mapping(text: &str) -> Result<(String, String), String> {
-    match text.split_once('=') {
-        Some((from, to)) if !from.is_empty() && !to.is_empty() => {
-            Ok((from.to_string(), to.to_string()))
-        }
-        _ => Err(format!(
-            "expected FILE_COLUMN=CONTRACT_COLUMN, found `{text}`"
-        )),
-    }
-}
-
-impl InputArgs {
-    fn options(&self, dof: Option<usize>, min_samples: usize) -> ReadOptions {
-        ReadOptions {
-            units: self.angles.into(),
-            dof,
-            resample_hz: self.resample,
-            min_samples,
-            renames: self.columns.iter().cloned().collect(),
-            ignored: self.ignored.clone(),
-        }
-    }
-}
-
-/// Preprocessing options (thesis 2.4.2 defaults).
-#[derive(Debug, Args, Clone)]
-pub struct FilterArgs {
-    /// Keep every n-th sample (10: 1 kHz -> 100 Hz).
-    #[arg(long, default_value_t = 10)]
-    pub downsample: usize,
-    /// Velocity filter: `sma` (centred moving average, thesis), `sg` (Savitzky-Golay,
-    /// cubic, zero-phase; odd window) or `none`.
-    #[arg(long, default_value = "sma")]
-    pub filter: String,
-    /// Filter window in samples after downsampling (40 = 0.4 s at 100 Hz).
-    #[arg(long, default_value_t = 40)]
-    pub window: usize,
-    /// Also smooth the measured torque with the acceleration's filter
-    /// (parallel filtering): recommended for `diagnose`, whose fit then sees
-    /// torque and states smoothed alike; off in the thesis pipeline.
-    #[arg(long)]
-    pub filter_torque: bool,
-}
-
-impl FilterArgs {
-    pub fn preprocess(&self) -> Result<Preprocess> {
-        let filter = match self.filter.as_str() {
-            "sma" => Filter::Sma {
-                window: self.window,
-                centered: true,
-            },
-            "sg" if self.window.is_multiple_of(2) => bail!(
-                "--window {} for `sg`: a Savitzky-Golay window has a centre sample, so it must be odd ({} or {})",
-                self.window,
-                self.window.saturating_sub(1).max(1),
-                self.window + 1
-            ),
-            "sg" => Filter::SavitzkyGolay {
-                window: self.window,
-                order: 3,
-            },
-            "none" => Filter::None,
-            other => bail!("--filter must be `sma`, `sg` or `none`, not `{other}`"),
-        };
-        Ok(Preprocess {
-            downsample: self.downsample,
-            filter,
-            filter_torque: self.filter_torque,
-        })
-    }
-}
 
 /// Options shared by the studies: where results go, seeds and networks.
 #[derive(Debug, Args)]
@@ -240,7 +154,7 @@ pub fn study_command(args: &StudyArgs) -> Result<()> {
         .map(|path| Ok(read_csv(path, &args.input.options(Some(nominal.dof()), 2))?))
         .collect::<Result<Vec<_>>>()?;
     let config = StudyConfig {
-        preprocess: args.filter.preprocess()?,
+        preprocess: args.filter.resolve(&recordings)?.settings,
         trajectories: recordings.len() * (args.train_pieces + 1),
         train: recordings.len() * args.train_pieces,
         ..args.run.config()
@@ -328,11 +242,11 @@ pub struct PreprocessArgs {
 }
 
 pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
-    let preprocess = args.filter.preprocess()?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
-        let processed = preprocess.apply(&read_csv(path, &args.input.options(None, 2))?)?;
+        let (processed, pipeline) = load_one(path, None, &args.input, &args.filter)?;
+        eprintln!("{}: {}", path.display(), pipeline.summary());
         write_csv(args.out.join(file_name(path)?), &processed)?;
         Ok(())
     })
@@ -362,13 +276,11 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
-        let traj = load(
-            path,
-            model.dof(),
-            &args.input,
-            &args.filter,
-            args.preprocessed,
-        )?;
+        let traj = if args.preprocessed {
+            load_preprocessed(path, Some(model.dof()), &args.input)?
+        } else {
+            load_one(path, Some(model.dof()), &args.input, &args.filter)?.0
+        };
         let analytical = traj.with_tau(model_torques(model, &traj)?)?;
         write_csv(args.out.join(file_name(path)?), &analytical)?;
         Ok(())
@@ -402,11 +314,20 @@ pub struct TrainArgs {
 }
 
 pub fn train(args: &TrainArgs) -> Result<()> {
+    let trajectories = if args.preprocessed {
+        args.data
+            .iter()
+            .map(|path| load_preprocessed(path, None, &args.input))
+            .collect::<Result<Vec<_>>>()?
+    } else {
+        let (trajectories, pipeline) = load(&args.data, None, &args.input, &args.filter)?;
+        eprintln!("{}", pipeline.summary());
+        trajectories
+    };
     let mut parts = Vec::new();
-    for (group, path) in args.data.iter().enumerate() {
-        let traj = load_any(path, &args.input, &args.filter, args.preprocessed)?;
+    for (group, (path, traj)) in args.data.iter().zip(&trajectories).enumerate() {
         parts.push(
-            Dataset::from_trajectory(&traj, group).with_context(|| path.display().to_string())?,
+            Dataset::from_trajectory(traj, group).with_context(|| path.display().to_string())?,
         );
     }
     let data = Dataset::concat(&parts)?;
@@ -471,13 +392,13 @@ pub struct EvaluateArgs {
 pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     let model = find_model(&args.model)?;
     let network = args.nn.as_ref().map(Mlp::load).transpose()?;
+    let (trajectories, pipeline) = load(&args.data, Some(model.dof()), &args.input, &args.filter)?;
     let mut predicted = Vec::new();
     let mut measured = Vec::new();
-    for path in &args.data {
-        let traj = load(path, model.dof(), &args.input, &args.filter, false)?;
+    for traj in &trajectories {
         predicted.push(match &network {
-            Some(n) => n.predict(&Dataset::from_trajectory(&traj, 0)?.inputs)?,
-            None => model_torques(model, &traj)?,
+            Some(n) => n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?,
+            None => model_torques(model, traj)?,
         });
         measured.push(traj.tau().clone());
     }
@@ -491,10 +412,14 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     match args.format {
         Format::Json => println!(
             "{}",
-            serde_json::json!({ "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean })
+            serde_json::json!({
+                "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
+                "preprocessing": pipeline,
+            })
         ),
         Format::Text => {
             println!("model {name}: {} samples", m.nrows());
+            println!("{}", pipeline.summary());
             for (j, v) in mse.iter().enumerate() {
                 println!("  joint {}: MSE {v:.6} N m^2", j + 1);
             }
@@ -544,11 +469,12 @@ pub fn predict(args: &PredictArgs) -> Result<()> {
 
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
-    /// Compiled model to check.
+    /// The model to check: a compiled model's name, or a TOML description
+    /// (evaluated by the numeric dynamics, no rebuild needed).
     #[arg(long, default_value = DEFAULT_NOMINAL)]
     pub model: String,
-    /// Raw measured CSV files (at least two trajectories, or one with
-    /// --segments: the gap is cross-validated across them).
+    /// Raw measured CSV files: one or more recordings, each cut into
+    /// cross-validation segments.
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]
@@ -557,14 +483,14 @@ pub struct DiagnoseArgs {
     pub filter: FilterArgs,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
-    /// Cut each file into this many contiguous pieces after preprocessing, so
-    /// a single long recording can be cross-validated across its pieces.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
-    pub segments: u32,
+    /// Cross-validation segments per recording [default: about 12 in all,
+    /// 2-30 s each].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub segments: Option<u32>,
     /// Write the named effects into the model's TOML (a `.bak` copy is kept).
     #[arg(long)]
     pub apply: bool,
-    /// The description to update with --apply (default models/MODEL.toml).
+    /// The description to update with --apply (default: the model's TOML).
     #[arg(long)]
     pub toml: Option<PathBuf>,
     /// Write residual-vs-velocity and residual-vs-acceleration plots (SVG,
@@ -575,128 +501,75 @@ pub struct DiagnoseArgs {
 
 pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
     let model = find_model(&args.model)?;
-    let trajectories = args
-        .data
-        .iter()
-        .map(|path| load(path, model.dof(), &args.input, &args.filter, false))
-        .collect::<Result<Vec<_>>>()?
-        .iter()
-        .flat_map(|traj| traj.split(args.segments as usize))
-        .collect::<Vec<_>>();
+    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let pipeline = args.filter.resolve(&recordings)?;
     let report = crate::diagnose::diagnose(
         model,
-        &trajectories,
+        &recordings,
+        &pipeline,
         crate::diagnose::Settings {
             reach: crate::diagnose::reach(model),
+            segments: args.segments.map(|s| s as usize),
             ..crate::diagnose::Settings::default()
         },
     )?;
     match args.format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&report)?),
-        Format::Text => {
-            println!("model {}: {} samples", report.model, report.samples);
-            for j in 0..report.mse_before.len() {
-                println!(
-                    "  joint {}: residual RMS {:.4} N m ({:.1}% of torque RMS); held-out MSE {:.5} -> {:.5} N m^2",
-                    j + 1,
-                    report.residual_rms[j],
-                    100.0 * report.residual_share[j],
-                    report.mse_before[j],
-                    report.mse_after[j]
-                );
-                let r = &report.regimes[j];
-                println!(
-                    "    residual correlates with velocity {:+.2}, its sign {:+.2}, acceleration \
-                     {:+.2}, gravity load {:+.2}; mean {:+.4} N m",
-                    r.velocity, r.velocity_sign, r.acceleration, r.gravity_load, r.mean
-                );
-            }
-            if report.effects.is_empty() {
-                println!("no significant missing effect found");
-            }
-            for e in &report.effects {
-                let joint = match (e.joint, &e.link) {
-                    (Some(j), _) => format!("joint {j}"),
-                    (None, Some(link)) => format!("link `{link}`"),
-                    (None, None) => "the last link".to_string(),
-                };
-                let whose = if e.joint.is_some() {
-                    "its joint's"
-                } else {
-                    "the"
-                };
-                println!(
-                    "  missing: {:?} on {joint}: {} (95% CI {}), explains {:.1}% of {whose} residual",
-                    e.kind,
-                    serde_json::Value::Object(e.parameters.clone()),
-                    serde_json::Value::Object(e.ci95.clone()),
-                    100.0 * e.share_explained
-                );
-            }
-            for note in &report.notes {
-                println!("  note: {note}");
-            }
-        }
+        Format::Text => print!("{}", report.text()),
     }
     if let Some(dir) = &args.plots {
-        for path in crate::diagnose_plots::write(dir, &report)? {
+        for path in crate::diagnose::plots::write(dir, &report)? {
             eprintln!("wrote {}", path.display());
         }
     }
     if args.apply && !report.effects.is_empty() {
-        let toml = args
-            .toml
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(format!("models/{}.toml", model.name())));
-        let description = crate::dynamics::parsed_description(model)?;
-        let last = description
-            .chain()
-            .bodies
-            .last()
-            .map(|b| b.link.clone())
-            .unwrap_or_default();
-        let backup = crate::apply::apply_to_file(&toml, &report, model.joint_names(), &last)?;
-        eprintln!(
-            "updated {} (backup {}); next: `cargo build --release` regenerates the model, then \
-             `sdnn evaluate --model {} --data ...` with the same preprocessing options shows the \
-             new gap",
-            toml.display(),
-            backup.display(),
-            model.name()
-        );
+        apply(args, model, &report)?;
     }
     Ok(())
 }
 
-/// Reads a measured file with the model's joint count and preprocesses it.
-fn load(
-    path: &Path,
-    dof: usize,
-    input: &InputArgs,
-    filter: &FilterArgs,
-    preprocessed: bool,
-) -> Result<Trajectory> {
-    let traj = read_csv(path, &input.options(Some(dof), 2))?;
-    if preprocessed {
-        if traj.qdd().is_none() {
-            bail!(
-                "{}: --preprocessed needs qdd1..qddN columns",
-                path.display()
-            );
-        }
-        return Ok(traj);
-    }
-    Ok(filter.preprocess()?.apply(&traj)?)
+/// Writes the named effects into the description and says how to see the
+/// gap shrink.
+fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Result<()> {
+    let toml = match (&args.toml, crate::cli::model_path(&args.model)) {
+        (Some(path), _) => path.clone(),
+        (None, Some(path)) => path,
+        (None, None) => PathBuf::from(format!("models/{}.toml", model.name())),
+    };
+    let description = crate::dynamics::parsed_description(model)?;
+    let last = description
+        .chain()
+        .bodies
+        .last()
+        .map(|b| b.link.clone())
+        .unwrap_or_default();
+    let backup = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
+    let data: Vec<String> = args.data.iter().map(|p| shell_word(&p.display().to_string())).collect();
+    let options = args.filter.command_line(args.input.angles);
+    eprintln!(
+        "updated {} (backup {}); the gap with the effects, no rebuild needed:\n  \
+         sdnn evaluate --model {} --data {}{options}\n(`cargo build --release` makes it the \
+         compiled model `{}` when the file is under models/)",
+        toml.display(),
+        backup.display(),
+        shell_word(&toml.display().to_string()),
+        data.join(" "),
+        toml.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned()),
+    );
+    Ok(())
 }
 
-fn load_any(
-    path: &Path,
-    input: &InputArgs,
-    filter: &FilterArgs,
-    preprocessed: bool,
-) -> Result<Trajectory> {
-    let dof = read_csv(path, &input.options(None, 2))?.dof();
-    load(path, dof, input, filter, preprocessed)
+/// `word` quoted for a POSIX shell when it needs it.
+fn shell_word(word: &str) -> String {
+    if !word.is_empty()
+        && word
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@".contains(c))
+    {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 fn file_name(path: &Path) -> Result<&std::ffi::OsStr> {

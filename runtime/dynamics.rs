@@ -183,3 +183,20 @@ pub fn parsed_description(
 pub fn model_names() -> Vec<&'static str> {
     crate::models::MODELS.iter().map(|m| m.name()).collect()
 }
+
+/// Torques of a compiled model on a trajectory's (q, qd, qdd).
+pub fn model_torques(
+    model: &dyn Dynamics,
+    traj: &crate::trajectory::Trajectory,
+) -> anyhow::Result<DMatrix<f64>> {
+    let qdd = traj
+        .qdd()
+        .ok_or_else(|| anyhow::anyhow!("the trajectory has no accelerations; preprocess it first"))?;
+    let mut tau = DMatrix::zeros(traj.len(), model.dof());
+    for r in 0..traj.len() {
+        let row = |m: &DMatrix<f64>| m.row(r).iter().copied().collect::<Vec<f64>>();
+        let t = model.tau(&row(traj.q()), &row(traj.qd()), &row(qdd))?;
+        tau.set_row(r, &t.transpose());
+    }
+    Ok(tau)
+}

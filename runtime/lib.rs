@@ -5,15 +5,15 @@
 //! [`models`]; [`oracle`] is an independent numeric recursive Newton-Euler
 //! built from the same descriptions, used to verify them.
 
-pub mod apply;
 pub mod cli;
 pub mod commands;
 pub mod diagnose;
-pub mod diagnose_plots;
+pub mod described;
 pub mod dynamics;
 pub mod import_log;
 pub mod import_urdf;
 pub mod imports;
+pub mod inputs;
 pub mod mlp;
 pub mod oracle;
 pub mod preprocess;

@@ -13,7 +13,7 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::dynamics::{Dynamics, parsed_description};
+use crate::dynamics::{Dynamics, model_torques, parsed_description};
 use crate::mlp::{Dataset, Mlp};
 use crate::preprocess::Preprocess;
 use crate::sim::models::Compiled;
@@ -387,20 +387,6 @@ pub fn record_trajectory(
         &SimConfig::default(),
         seed,
     )?)
-}
-
-/// Torques of a compiled model on a trajectory's (q, qd, qdd).
-pub fn model_torques(model: &dyn Dynamics, traj: &Trajectory) -> Result<DMatrix<f64>> {
-    let qdd = traj
-        .qdd()
-        .context("the trajectory has no accelerations; preprocess it first")?;
-    let mut tau = DMatrix::zeros(traj.len(), model.dof());
-    for r in 0..traj.len() {
-        let row = |m: &DMatrix<f64>| m.row(r).iter().copied().collect::<Vec<f64>>();
-        let t = model.tau(&row(traj.q()), &row(traj.qd()), &row(qdd))?;
-        tau.set_row(r, &t.transpose());
-    }
-    Ok(tau)
 }
 
 /// Mean squared error per joint.

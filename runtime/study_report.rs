@@ -10,7 +10,8 @@ use crate::dynamics::Dynamics;
 use crate::mlp::{Dataset, Mlp};
 use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot, line_plot};
 use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv, write_markdown};
-use crate::study::{StudyResult, model_torques, slug};
+use crate::dynamics::model_torques;
+use crate::study::{StudyResult, slug};
 use crate::trajectory::Trajectory;
 
 /// What the plots are drawn from.

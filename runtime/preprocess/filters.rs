@@ -1,4 +1,4 @@
-//! Signal preprocessing of thesis section 2.4: downsampling, smoothing of the
+//! The filters of preprocessing: thesis section 2.4 downsampling, smoothing of the
 //! noisy joint velocity, and acceleration by finite differences (Eq. 2.26).
 //!
 //! Every filter returns as many samples as it is given.
@@ -31,6 +31,16 @@ pub enum PreprocessError {
     /// A derivative above the polynomial order is identically zero.
     #[error("Savitzky-Golay derivative {deriv} must not exceed the polynomial order {order}")]
     InvalidDeriv { deriv: usize, order: usize },
+    /// A low-pass cut-off outside (0, Nyquist).
+    #[error(
+        "low-pass cut-off {cutoff_hz} Hz must be positive and below the Nyquist frequency {nyquist_hz} Hz of the data"
+    )]
+    InvalidCutoff { cutoff_hz: f64, nyquist_hz: f64 },
+    /// A decimated rate too low for the cut-off.
+    #[error(
+        "decimated rate {rate_hz} Hz must be at least twice the low-pass cut-off ({cutoff_hz} Hz)"
+    )]
+    InvalidRate { rate_hz: f64, cutoff_hz: f64 },
     /// The sampling interval is not a positive finite number.
     #[error("sampling interval must be a positive finite number of seconds, got {dt}")]
     InvalidStep { dt: f64 },
@@ -60,7 +70,7 @@ pub enum Centering {
 
 impl Centering {
     /// `Centered` for the configuration's `centered: true`.
-    fn of(centered: bool) -> Centering {
+    pub(crate) fn of(centered: bool) -> Centering {
         if centered {
             Centering::Centered
         } else {
@@ -140,7 +150,7 @@ fn check_window(n: usize, window: usize, what: &'static str) -> Result<(), Prepr
     Ok(())
 }
 
-fn check_dt(dt: f64) -> Result<(), PreprocessError> {
+pub(crate) fn check_dt(dt: f64) -> Result<(), PreprocessError> {
     if dt.is_finite() && dt > 0.0 {
         Ok(())
     } else {
@@ -249,120 +259,10 @@ fn sg_weights(fit: &DMatrix<f64>, deriv: usize, u: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Velocity smoothing used by [`Preprocess`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Filter {
-    /// No smoothing; acceleration by plain central differences.
-    None,
-    /// Thesis pipeline: SMA on velocity, central difference, SMA again.
-    Sma { window: usize, centered: bool },
-    /// Zero-phase alternative: velocity and acceleration from one local
-    /// polynomial fit of the raw velocity (derivatives 0 and 1).
-    SavitzkyGolay { window: usize, order: usize },
-}
-
-/// Preprocessing configuration (thesis §2.4.2 defaults).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct Preprocess {
-    /// Keep every n-th sample (10: 1 kHz -> 100 Hz).
-    pub downsample: usize,
-    /// Velocity filter (SMA, window 40 = 0.4 s at 100 Hz, centred).
-    pub filter: Filter,
-    /// Also low-pass the measured torque with the acceleration's filter
-    /// ("parallel filtering" of identification): the torque then carries no
-    /// more high-frequency content than the smoothed states that explain it.
-    /// Off in the thesis pipeline.
-    pub filter_torque: bool,
-}
-
-impl Default for Preprocess {
-    fn default() -> Self {
-        Self {
-            downsample: 10,
-            filter: Filter::Sma {
-                window: 40,
-                centered: true,
-            },
-            filter_torque: false,
-        }
-    }
-}
-
-impl Preprocess {
-    /// Downsamples, smooths the velocity and recomputes the acceleration;
-    /// `q` and `tau` are kept as measured, any `qdd` is replaced. Assumes
-    /// uniform sampling (as [`crate::trajectory::read_csv`] guarantees).
-    pub fn apply(&self, traj: &Trajectory) -> Result<Trajectory, PreprocessError> {
-        let traj = downsample(traj, self.downsample)?;
-        let n = traj.len();
-        let needed = match self.filter {
-            Filter::None => 2,
-            Filter::Sma { window, .. } | Filter::SavitzkyGolay { window, .. } => window.max(2),
-        };
-        if n < needed {
-            return Err(PreprocessError::TooFewSamples {
-                what: "preprocessing after downsampling",
-                needed,
-                found: n,
-            });
-        }
-        let dt = (traj.t()[n - 1] - traj.t()[0]) / (n - 1) as f64;
-        let mut qd = traj.qd().clone();
-        let mut qdd = DMatrix::zeros(n, traj.dof());
-        for j in 0..traj.dof() {
-            let raw: Vec<f64> = traj.qd().column(j).iter().copied().collect();
-            let (v, a) = self.filter_velocity(&raw, dt)?;
-            qd.column_mut(j).copy_from_slice(&v);
-            qdd.column_mut(j).copy_from_slice(&a);
-        }
-        let mut tau = traj.tau().clone();
-        if self.filter_torque {
-            for j in 0..traj.dof() {
-                let raw: Vec<f64> = traj.tau().column(j).iter().copied().collect();
-                tau.column_mut(j)
-                    .copy_from_slice(&self.acceleration_lowpass(&raw, dt)?);
-            }
-        }
-        let t = traj.t().to_vec();
-        Ok(Trajectory::new(t, traj.q().clone(), qd, Some(qdd), tau)?)
-    }
-
-    /// The low-pass that the acceleration estimate applies, as a smoother:
-    /// the SMA twice (velocity, then difference) or the Savitzky-Golay fit.
-    fn acceleration_lowpass(&self, x: &[f64], dt: f64) -> Result<Vec<f64>, PreprocessError> {
-        match self.filter {
-            Filter::None => Ok(x.to_vec()),
-            Filter::Sma { window, centered } => {
-                let c = Centering::of(centered);
-                moving_average(&moving_average(x, window, c)?, window, c)
-            }
-            Filter::SavitzkyGolay { window, order } => savitzky_golay(x, window, order, 0, dt),
-        }
-    }
-
-    /// Returns (smoothed velocity, acceleration) for one joint.
-    fn filter_velocity(&self, v: &[f64], dt: f64) -> Result<(Vec<f64>, Vec<f64>), PreprocessError> {
-        match self.filter {
-            Filter::None => Ok((v.to_vec(), central_difference(v, dt)?)),
-            Filter::Sma { window, centered } => {
-                let c = Centering::of(centered);
-                let smooth = moving_average(v, window, c)?;
-                let acc = moving_average(&central_difference(&smooth, dt)?, window, c)?;
-                Ok((smooth, acc))
-            }
-            Filter::SavitzkyGolay { window, order } => Ok((
-                savitzky_golay(v, window, order, 0, dt)?,
-                savitzky_golay(v, window, order, 1, dt)?,
-            )),
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::preprocess::{Filter, Preprocess};
     use proptest::prelude::*;
 
     fn close(a: f64, b: f64, tol: f64) -> bool {

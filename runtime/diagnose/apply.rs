@@ -345,7 +345,8 @@ mod tests {
             link: None,
             parameters: params.as_object().cloned().unwrap_or_default(),
             ci95: Default::default(),
-            share_explained: 0.5,
+            heldout_mse_removed: 0.1,
+            heldout_share: 0.5,
         }
     }
 

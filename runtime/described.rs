@@ -1,0 +1,164 @@
+//! A model read from a TOML description at run time, evaluated by the
+//! numeric dynamics of [`crate::oracle`]: `--model path/to/arm.toml` works
+//! without a rebuild (the compiled models stay the fast path, 10-100x
+//! faster).
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use nalgebra::{DMatrix, DVector};
+
+use crate::dynamics::{DimensionError, Dynamics};
+use crate::oracle::{self, Model};
+
+/// A description file's model. Its names live as long as the process (one
+/// model per command), so it can stand behind [`Dynamics`]'s `'static`
+/// strings.
+pub struct Described {
+    name: &'static str,
+    text: &'static str,
+    joint_names: &'static [&'static str],
+    parameters: &'static [f64],
+    parameter_names: &'static [&'static str],
+    model: Model,
+}
+
+const INERTIAL_NAMES: [&str; 10] = [
+    "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
+];
+const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
+
+impl Described {
+    /// Reads and validates the description at `path` (named by its stem).
+    pub fn load(path: &Path) -> Result<&'static Described> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading model description {}", path.display()))?;
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let description = codegen::Description::parse(&text, &stem, path)?;
+        let model = Model::from_description(&description);
+        let n = model.dof();
+        let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
+        let joint_names: Vec<&'static str> = description
+            .chain()
+            .bodies
+            .iter()
+            .map(|b| leak(b.joint.clone()))
+            .collect();
+        let names = (1..=n)
+            .flat_map(|b| INERTIAL_NAMES.map(|p| format!("{p}{b}")))
+            .chain((1..=n).flat_map(|b| EFFECT_NAMES.map(|p| format!("{p}{b}"))))
+            .map(leak)
+            .collect::<Vec<_>>();
+        let parameters = model.parameters().as_slice().to_vec();
+        Ok(Box::leak(Box::new(Described {
+            name: leak(path.display().to_string()),
+            text: leak(text),
+            joint_names: Box::leak(joint_names.into_boxed_slice()),
+            parameters: Box::leak(parameters.into_boxed_slice()),
+            parameter_names: Box::leak(names.into_boxed_slice()),
+            model,
+        })))
+    }
+
+    fn check(&self, argument: &'static str, values: &[f64]) -> Result<(), DimensionError> {
+        if values.len() == self.model.dof() {
+            Ok(())
+        } else {
+            Err(DimensionError {
+                model: self.name,
+                argument,
+                expected: self.model.dof(),
+                found: values.len(),
+            })
+        }
+    }
+}
+
+impl Dynamics for Described {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn dof(&self) -> usize {
+        self.model.dof()
+    }
+    fn joint_names(&self) -> &'static [&'static str] {
+        self.joint_names
+    }
+    fn description(&self) -> &'static str {
+        self.text
+    }
+    fn parameters(&self) -> &'static [f64] {
+        self.parameters
+    }
+    fn parameter_names(&self) -> &'static [&'static str] {
+        self.parameter_names
+    }
+    fn tau(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<DVector<f64>, DimensionError> {
+        self.check("q", q)?;
+        self.check("qd", qd)?;
+        self.check("qdd", qdd)?;
+        Ok(oracle::rnea(&self.model, q, qd, qdd))
+    }
+    fn mass_matrix(&self, q: &[f64]) -> Result<DMatrix<f64>, DimensionError> {
+        self.check("q", q)?;
+        Ok(oracle::crba(&self.model, q))
+    }
+    fn gravity(&self, q: &[f64]) -> Result<DVector<f64>, DimensionError> {
+        self.check("q", q)?;
+        Ok(oracle::gravity(&self.model, q))
+    }
+    fn coriolis(&self, q: &[f64], qd: &[f64]) -> Result<DVector<f64>, DimensionError> {
+        self.check("q", q)?;
+        self.check("qd", qd)?;
+        Ok(oracle::coriolis(&self.model, q, qd))
+    }
+    fn effects(&self, qd: &[f64]) -> Result<DVector<f64>, DimensionError> {
+        self.check("qd", qd)?;
+        Ok(DVector::from_iterator(
+            qd.len(),
+            self.model
+                .bodies
+                .iter()
+                .zip(qd)
+                .map(|(b, &v)| oracle::effects_torque(&b.effects, v, 0.0)),
+        ))
+    }
+    fn regressor(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+    ) -> Result<DMatrix<f64>, DimensionError> {
+        self.check("q", q)?;
+        self.check("qd", qd)?;
+        self.check("qdd", qdd)?;
+        Ok(oracle::regressor(&self.model, q, qd, qdd))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_description_file_matches_its_compiled_model() {
+        let compiled = crate::model("kinova_gen3_lite_3dof_plant").unwrap();
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/kinova_gen3_lite_3dof_plant.toml");
+        let described = Described::load(&path).unwrap();
+        let (q, qd, qdd) = ([0.3, -0.7, 1.1], [0.5, -0.2, 0.9], [1.0, 2.0, -3.0]);
+        let a = compiled.tau(&q, &qd, &qdd).unwrap();
+        let b = described.tau(&q, &qd, &qdd).unwrap();
+        assert!((a - b).amax() < 1e-9);
+        assert_eq!(described.joint_names(), compiled.joint_names());
+        assert_eq!(described.parameter_names(), compiled.parameter_names());
+        let (ya, yb) = (
+            compiled.regressor(&q, &qd, &qdd).unwrap(),
+            described.regressor(&q, &qd, &qdd).unwrap(),
+        );
+        assert!((ya - yb).amax() < 1e-9);
+        assert!(described.tau(&q[..2], &qd, &qdd).is_err());
+    }
+}

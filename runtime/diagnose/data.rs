@@ -1,0 +1,434 @@
+//! The stacked residual and the candidate columns built from trajectories.
+
+use nalgebra::{DMatrix, DVector, Vector3};
+
+use super::Kind;
+use super::candidate::{Candidate, Shape, point_mass};
+use crate::dynamics::{Dynamics, model_torques};
+use crate::oracle::coulomb_sign;
+use crate::preprocess::{Filter, Pipeline, step};
+use crate::trajectory::Trajectory;
+
+/// Stacked data: rows are (sample, joint) pairs, sample-major.
+pub(super) struct Stacked {
+    pub(super) residual: DVector<f64>,
+    pub(super) measured: DVector<f64>,
+    pub(super) qd: DVector<f64>,
+    pub(super) qdd: DVector<f64>,
+    /// The model's gravity torque.
+    pub(super) gravity: DVector<f64>,
+    /// Own-joint features ([`GENERIC_FEATURES`]), filtered like the columns.
+    pub(super) generic: Vec<DVector<f64>>,
+    pub(super) group: Vec<usize>,
+    pub(super) dof: usize,
+}
+
+/// The same recording passed twice would leak into its own held-out fold.
+pub(super) fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<()> {
+    for (a, first) in trajectories.iter().enumerate() {
+        for (b, second) in trajectories.iter().enumerate().skip(a + 1) {
+            if first.t() == second.t() && first.q() == second.q() {
+                anyhow::bail!(
+                    "trajectories {} and {} hold the same samples: pass each recording once \
+                     (use --segments to cross-validate within one recording)",
+                    a + 1,
+                    b + 1
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A moving link of the model: its name and standard parameters.
+pub(super) struct Link {
+    pub(super) name: String,
+    pub(super) parameters: [f64; 10],
+}
+
+pub(super) fn links(model: &dyn Dynamics) -> Vec<Link> {
+    let names: Vec<String> = crate::dynamics::parsed_description(model)
+        .map(|d| d.chain().bodies.iter().map(|b| b.link.clone()).collect())
+        .unwrap_or_default();
+    (0..model.dof())
+        .map(|k| {
+            let mut parameters = [0.0; 10];
+            if let Some(p) = model.parameters().get(10 * k..10 * k + 10) {
+                parameters.copy_from_slice(p);
+            }
+            Link {
+                name: names
+                    .get(k)
+                    .cloned()
+                    .unwrap_or_else(|| format!("link {}", k + 1)),
+                parameters,
+            }
+        })
+        .collect()
+}
+
+/// Per-row signals of one recording, (sample, joint) rows, sample-major.
+#[derive(Default)]
+struct Rows {
+    residual: Vec<f64>,
+    measured: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    gravity: Vec<f64>,
+    coulomb_applied: Vec<f64>,
+    /// Fitted own-joint columns: qd, moving sign, qdd, 1.
+    own: [Vec<f64>; 4],
+    /// The regressor's inertial columns.
+    inertial: Vec<Vec<f64>>,
+    /// Own-joint features of the unexplained-structure check
+    /// ([`GENERIC_FEATURES`]).
+    generic: Vec<Vec<f64>>,
+}
+
+impl Rows {
+    /// The fitted columns (parallel filtering).
+    fn fitted_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
+        self.own
+            .iter_mut()
+            .chain(self.inertial.iter_mut())
+            .chain(self.generic.iter_mut())
+    }
+
+    fn keep(&self, dof: usize, samples: &[usize]) -> Rows {
+        let pick = |v: &Vec<f64>| -> Vec<f64> {
+            samples
+                .iter()
+                .flat_map(|&s| v[s * dof..(s + 1) * dof].iter().copied())
+                .collect()
+        };
+        Rows {
+            residual: pick(&self.residual),
+            measured: pick(&self.measured),
+            qd: pick(&self.qd),
+            qdd: pick(&self.qdd),
+            gravity: pick(&self.gravity),
+            coulomb_applied: pick(&self.coulomb_applied),
+            own: std::array::from_fn(|k| pick(&self.own[k])),
+            inertial: self.inertial.iter().map(pick).collect(),
+            generic: self.generic.iter().map(pick).collect(),
+        }
+    }
+}
+
+/// How recordings became the diagnosed rows (reported).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Layout {
+    /// Cross-validation groups: contiguous segments of the recordings.
+    pub segments: usize,
+    /// Seconds per segment (mean).
+    pub segment_seconds: f64,
+    /// Samples dropped at each end of a recording against filter transients.
+    pub trimmed_samples: usize,
+}
+
+/// Preprocesses every raw recording with `pipeline` at its own rate, builds
+/// the residual (filtered torque minus the model on filtered states, what
+/// `sdnn evaluate` compares) and the candidate columns, filters every
+/// fitted column with the torque's filter (parallel filtering), trims filter
+/// transients, decimates and cuts the recordings into cross-validation
+/// segments (`segments` per recording, or chosen by [`segment_counts`]).
+pub(super) fn stack(
+    model: &dyn Dynamics,
+    recordings: &[Trajectory],
+    pipeline: &Pipeline,
+    segments: Option<usize>,
+) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
+    let n = model.dof();
+    let mut kept = Vec::new();
+    let mut durations = Vec::new();
+    let mut trimmed = 0;
+    for (g, raw) in recordings.iter().enumerate() {
+        if raw.dof() != n {
+            anyhow::bail!(
+                "recording {} has {} joints, model `{}` has {n}",
+                g + 1,
+                raw.dof(),
+                model.name()
+            );
+        }
+        let settings = pipeline.for_recording(raw);
+        let (traj, decimate) = match settings.filter {
+            Filter::Butterworth { .. } => (settings.filter_at_full_rate(raw)?, settings.downsample),
+            _ => (settings.apply(raw)?, 1),
+        };
+        let mut rows = rows(model, &traj)?;
+        if settings.filter_torque {
+            let dt = step(&traj);
+            for column in rows.fitted_mut() {
+                smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
+            }
+        }
+        let trim = match settings.filter {
+            Filter::Butterworth { cutoff_hz } if traj.len() > 8 * (1.0 / (cutoff_hz * step(&traj))) as usize => {
+                (1.0 / (cutoff_hz * step(&traj))).ceil() as usize
+            }
+            _ => 0,
+        };
+        trimmed = trim;
+        let samples: Vec<usize> = (trim..traj.len() - trim).step_by(decimate).collect();
+        durations.push(samples.len() as f64 * step(&traj) * decimate as f64);
+        kept.push(rows.keep(n, &samples));
+    }
+    let counts = match segments {
+        Some(k) => vec![k; kept.len()],
+        None => segment_counts(&durations),
+    };
+    let mut all = Rows::default();
+    all.inertial = vec![Vec::new(); 10 * n];
+    all.generic = vec![Vec::new(); GENERIC_FEATURES.len()];
+    let mut group = Vec::new();
+    for (rows, &count) in kept.iter().zip(&counts) {
+        let samples = rows.residual.len() / n;
+        let count = count.clamp(1, samples.max(1));
+        let first = group.last().map_or(0, |g| g + 1);
+        for s in 0..samples {
+            group.extend(std::iter::repeat_n(first + s * count / samples, n));
+        }
+        all.residual.extend(&rows.residual);
+        all.measured.extend(&rows.measured);
+        all.qd.extend(&rows.qd);
+        all.qdd.extend(&rows.qdd);
+        all.gravity.extend(&rows.gravity);
+        all.coulomb_applied.extend(&rows.coulomb_applied);
+        let from = rows.own.iter().chain(&rows.inertial).chain(&rows.generic);
+        for (to, from) in all.fitted_mut().zip(from) {
+            to.extend(from);
+        }
+    }
+    let groups = group.last().map_or(0, |g| g + 1);
+    let total: f64 = durations.iter().sum();
+    let layout = Layout {
+        segments: groups,
+        segment_seconds: total / groups.max(1) as f64,
+        trimmed_samples: trimmed,
+    };
+    let vector = DVector::from_vec;
+    let data = Stacked {
+        residual: vector(all.residual),
+        measured: vector(all.measured),
+        qd: vector(all.qd),
+        qdd: vector(all.qdd),
+        gravity: vector(all.gravity),
+        generic: all.generic.into_iter().map(DVector::from_vec).collect(),
+        group,
+        dof: n,
+    };
+    let own = all.own.map(DVector::from_vec);
+    let inertial = all.inertial.into_iter().map(DVector::from_vec).collect();
+    let coulomb = DVector::from_vec(all.coulomb_applied);
+    let candidates = candidates(&data, &own, &coulomb, inertial, &links(model));
+    Ok((data, candidates, layout))
+}
+
+/// Shortest and longest cross-validation segment, s.
+pub const SEGMENT_SECONDS: (f64, f64) = (2.0, 30.0);
+/// Segments aimed for over all recordings.
+pub const TARGET_SEGMENTS: f64 = 12.0;
+
+/// Segments per recording: about [`TARGET_SEGMENTS`] in all, each within
+/// [`SEGMENT_SECONDS`] (shorter only when the recordings are too short for
+/// four segments of 2 s), so one recording is cross-validated across its
+/// own pieces and three give twelve groups for the jackknife.
+pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
+    let total: f64 = durations.iter().sum();
+    let shortest = SEGMENT_SECONDS.0.min(total / 4.0);
+    let length = (total / TARGET_SEGMENTS).clamp(shortest, SEGMENT_SECONDS.1);
+    durations
+        .iter()
+        .map(|d| ((d / length).round() as usize).max(1))
+        .collect()
+}
+
+/// The model's residual and candidate columns at every sample of `traj`.
+fn rows(model: &dyn Dynamics, traj: &Trajectory) -> anyhow::Result<Rows> {
+    let n = model.dof();
+    let predicted = model_torques(model, traj)?;
+    let accel = traj
+        .qdd()
+        .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
+    let mut rows = Rows {
+        inertial: vec![Vec::with_capacity(traj.len() * n); 10 * n],
+        generic: vec![Vec::with_capacity(traj.len() * n); GENERIC_FEATURES.len()],
+        ..Rows::default()
+    };
+    let rate = torque_rate(&predicted, step(traj));
+    for s in 0..traj.len() {
+        let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
+        let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));
+        let y = model.regressor(&q, &qd, &qdd)?;
+        let load = model.gravity(&q)?;
+        for i in 0..n {
+            let tau = traj.tau()[(s, i)];
+            rows.residual.push(tau - predicted[(s, i)]);
+            rows.measured.push(tau);
+            rows.qd.push(qd[i]);
+            rows.qdd.push(qdd[i]);
+            rows.gravity.push(load[i]);
+            rows.coulomb_applied.push(coulomb_sign(qd[i]));
+            for (k, v) in [qd[i], moving_sign(qd[i]), qdd[i], 1.0].into_iter().enumerate() {
+                rows.own[k].push(v);
+            }
+            for (k, column) in rows.inertial.iter_mut().enumerate() {
+                column.push(y[(i, k)]);
+            }
+            let features = generic_features(q[i], qd[i], qdd[i], load[i], rate[(s, i)]);
+            for (column, v) in rows.generic.iter_mut().zip(features) {
+                column.push(v);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// Features of the unexplained-structure check, by regime: what a
+/// residual that no candidate explains may still depend on.
+pub const GENERIC_FEATURES: [(&str, &str); 12] = [
+    ("velocity", "qd"),
+    ("velocity", "qd |qd|"),
+    ("velocity sign", "sign(qd)"),
+    ("velocity sign", "sign(qd) exp(-|qd| / 0.1 rad/s)"),
+    ("acceleration", "qdd"),
+    ("gravity load", "model gravity torque"),
+    ("position", "sin q"),
+    ("position", "cos q"),
+    ("position", "sin 2q"),
+    ("position", "cos 2q"),
+    ("constant", "1"),
+    ("torque rate", "d/dt model torque"),
+];
+
+fn generic_features(q: f64, qd: f64, qdd: f64, load: f64, rate: f64) -> [f64; 12] {
+    let sign = moving_sign(qd);
+    [
+        qd,
+        qd * qd.abs(),
+        sign,
+        sign * (-qd.abs() / 0.1).exp(),
+        qdd,
+        load,
+        q.sin(),
+        q.cos(),
+        (2.0 * q).sin(),
+        (2.0 * q).cos(),
+        1.0,
+        rate,
+    ]
+}
+
+/// Time derivative of every column of `tau` (central differences).
+fn torque_rate(tau: &DMatrix<f64>, dt: f64) -> DMatrix<f64> {
+    let mut rate = DMatrix::zeros(tau.nrows(), tau.ncols());
+    for j in 0..tau.ncols() {
+        let x: Vec<f64> = tau.column(j).iter().copied().collect();
+        if let Ok(d) = crate::preprocess::central_difference(&x, dt) {
+            rate.column_mut(j).copy_from_slice(&d);
+        }
+    }
+    rate
+}
+
+/// Applies `smooth` to each joint's time series of a (sample, joint) column.
+fn smooth_per_joint(
+    column: &mut [f64],
+    dof: usize,
+    smooth: impl Fn(&[f64]) -> Result<Vec<f64>, crate::preprocess::PreprocessError>,
+) -> anyhow::Result<()> {
+    for j in 0..dof {
+        let series: Vec<f64> = column.iter().skip(j).step_by(dof).copied().collect();
+        for (at, v) in smooth(&series)?.into_iter().enumerate() {
+            column[at * dof + j] = v;
+        }
+    }
+    Ok(())
+}
+
+fn candidates(
+    data: &Stacked,
+    own_columns: &[DVector<f64>; 4],
+    coulomb_applied: &DVector<f64>,
+    mut inertial: Vec<DVector<f64>>,
+    links: &[Link],
+) -> Vec<Candidate> {
+    let n = data.dof;
+    let [qd, sign, qdd, ones] = own_columns;
+    let own = |j: usize, f: &dyn Fn(usize) -> f64| {
+        DVector::from_fn(
+            data.residual.len(),
+            |r, _| if r % n == j { f(r) } else { 0.0 },
+        )
+    };
+    let mut list = Vec::new();
+    for j in 0..n {
+        let one = |kind, name, f: &dyn Fn(usize) -> f64| Candidate {
+            kind,
+            joint: Some(j),
+            link: None,
+            names: vec![name],
+            columns: vec![own(j, f)],
+            applied: None,
+            shape: Shape::Linear,
+        };
+        list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
+        list.push(Candidate {
+            applied: Some(own(j, &|r| coulomb_applied[r])),
+            ..one(Kind::CoulombFriction, "level", &|r| sign[r])
+        });
+        list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
+        list.push(one(Kind::TorqueOffset, "offset", &|r| ones[r]));
+    }
+    for (k, link) in links.iter().enumerate().rev() {
+        let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
+        let (mass, moment) = (
+            link.parameters[0],
+            Vector3::new(link.parameters[1], link.parameters[2], link.parameters[3]),
+        );
+        let shape = if k + 1 == n {
+            Shape::Body {
+                offset: [0.0; 10],
+                base_mass: 0.0,
+                base_moment: Vector3::zeros(),
+            }
+        } else {
+            let com = if mass > 0.0 {
+                moment / mass
+            } else {
+                Vector3::zeros()
+            };
+            Shape::Body {
+                offset: point_mass(-mass, &com),
+                base_mass: mass,
+                base_moment: moment,
+            }
+        };
+        list.push(Candidate {
+            kind: if k + 1 == n {
+                Kind::Payload
+            } else {
+                Kind::InertialError
+            },
+            joint: None,
+            link: Some((k, link.name.clone())),
+            names: vec!["mass", "cx", "cy", "cz"],
+            columns,
+            applied: None,
+            shape,
+        });
+    }
+    list
+}
+
+/// Joints slower than this (rad/s) are taken as at rest for the Coulomb fit:
+/// their friction is static, anywhere between the Coulomb levels, and a
+/// measured velocity that small has an unreliable sign (noise), which would
+/// bias the level low. Held-out errors are still scored with the generated
+/// model's plain sign(qd) (`Candidate::applied`).
+pub const MOVING: f64 = 0.02;
+
+pub(super) fn moving_sign(qd: f64) -> f64 {
+    if qd.abs() > MOVING { qd.signum() } else { 0.0 }
+}

@@ -1,0 +1,300 @@
+//! Discrepancy diagnosis: where the compiled model and measured data
+//! disagree, which physical effect explains it, and how much it closes the
+//! gap on held-out trajectories.
+//!
+//! The residual r = tau_measured - tau_model is linear in the parameters of
+//! every candidate effect: per joint viscous friction (column qd_j), Coulomb
+//! friction (sign(qd_j)), armature (qdd_j) and a torque offset (1); and a
+//! payload on the last link (the generated regressor's m and m*c columns of
+//! that link; the payload's own rotational inertia is neglected). Effects are
+//! chosen by forward selection, each step keeping the candidate that lowers
+//! the leave-one-trajectory-out cross-validated MSE most, while it lowers it
+//! by at least `min_gain` and its parameters are significant (|t| > 3, each
+//! with the larger of its least-squares and its delete-one-trajectory
+//! jackknife standard error, as are the reported 95% intervals).
+//! A fit with a physically impossible sign (negative friction, armature or
+//! payload mass) is never named as that effect: it is reported as a note
+//! (e.g. a negative "armature" means the model's inertia about that joint is
+//! too high) and selection goes on with the other candidates.
+//! Parameters come from least squares with 95% confidence intervals.
+//!
+//! Inertial effects are fitted as physical bodies, not as free columns:
+//! - `payload`: a point mass m at c (last link's frame) added to the last
+//!   link. Its standard parameters are m * [1, c, |c|^2 E - c c^T] (the
+//!   inertia about the link origin included, which is what a point mass at
+//!   c adds), so the fit is nonlinear in c: Levenberg-Marquardt on the
+//!   moment matrices of the link's ten inertial regressor columns, started
+//!   from the linear fit of its mass and first-moment columns.
+//! - `inertial_error`: the mass and centre of mass of a link other than the
+//!   last differ from the model, its inertia about its centre of mass as
+//!   modelled. Standard parameters [m', m'c', I_C + m'(|c'|^2 E - c'c'^T)]
+//!   minus the model's; reported as the corrected mass and COM.
+//!
+//! A link's mass is identifiable from torques only through the acceleration
+//! of the link's origin (its mass column in the regressor); its first
+//! moment m*c and inertia have their own columns. When the origin lies on
+//! the axes of every joint that moves the link (link 2 of the 3-DOF Kinova:
+//! on both the joint-1 and joint-2 axes), that column vanishes and a fitted
+//! mass would come only from the parallel-axis terms of the assumed inertia
+//! about the COM. Rule ([`mass_identifiable`]): with the mass put in the
+//! first moments' units by the arm's size, the mass is identifiable when the
+//! information left about it once the link's first moments are projected
+//! out is at least [`COLLINEAR`] times the largest eigenvalue of the link's
+//! (mass, first moment) information. When it is not, the candidate fits the
+//! first moment h = m*c alone (the mass held as modelled, the inertia about
+//! the COM as modelled) and reports `first_moment` (kg m, with 95% CIs),
+//! `mass` and `com` as `null` and a note saying why; `--apply` then keeps
+//! the mass and moves the COM to h / (modelled mass), the assumption the
+//! note states, and never changes the mass.
+//!
+//! Naming rule on the last link: an added point mass and a heavier last link
+//! change the same mass and first-moment columns (they differ only in
+//! second moments, which these data barely separate), so the last link gets
+//! one candidate, the payload: mass added at the tip. A negative fitted
+//! payload mass is a note (the last link is lighter than modelled), never a
+//! payload. Links before the last get `inertial_error` candidates.
+//!
+//! Identifiability: a candidate whose parameters the data cannot separate
+//! (its information matrix, after the already-selected effects are
+//! projected out and scaled to unit diagonal, has a relative eigenvalue
+//! below [`COLLINEAR`]: collinear columns, or parameters that only enter
+//! through a base-parameter combination, such as the first link's mass and
+//! COM, which act only through its inertia about the first axis) is never
+//! named; if it would have been selected, a note says so. A named payload's
+//! or link's COM (or first-moment) component whose 95% confidence
+//! half-width exceeds [`Settings::com_resolution`] of the arm's size is
+//! reported with its wide interval and a note: the data barely determine it
+//! (typically the component along the joint axes, which acts only through
+//! couplings with the first joint), so the torques barely depend on it.
+
+pub mod apply;
+mod candidate;
+pub mod data;
+mod fit;
+pub mod plots;
+mod report;
+mod select;
+mod text;
+mod unexplained;
+
+use serde::Serialize;
+
+use crate::dynamics::Dynamics;
+use crate::preprocess::Pipeline;
+use crate::trajectory::Trajectory;
+pub use data::{Layout, segment_counts};
+pub use unexplained::{RegimeShare, Unexplained};
+use candidate::Shape;
+use data::{reject_duplicates, stack};
+use fit::{Moments, cv_mse_per_joint};
+use report::{describe, per_joint, regimes, residual_samples, residual_share};
+use select::{mass_identifiable, select};
+
+/// The kinds of effect the diagnosis can name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    ViscousFriction,
+    CoulombFriction,
+    Armature,
+    TorqueOffset,
+    Payload,
+    /// A link's mass and centre of mass differ from the model (`link`,
+    /// corrected `mass` kg and `com` [x, y, z] m in the link frame, and the
+    /// model's `nominal_mass`, `nominal_com`).
+    InertialError,
+}
+
+impl Kind {
+    /// The kind as JSON names it (`viscous_friction`, ...).
+    pub fn name(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default()
+    }
+}
+
+/// A named missing effect with its fitted parameters.
+#[derive(Debug, Clone, Serialize)]
+pub struct Effect {
+    pub kind: Kind,
+    /// 1-based joint, or `None` for a payload or an inertial error.
+    pub joint: Option<usize>,
+    /// The link (its name in the description) of a payload or inertial error.
+    pub link: Option<String>,
+    pub parameters: serde_json::Map<String, serde_json::Value>,
+    pub ci95: serde_json::Map<String, serde_json::Value>,
+    /// Held-out MSE (N m^2) this effect removes from its joint (a link
+    /// effect: summed over the joints), counted in selection order.
+    pub heldout_mse_removed: f64,
+    /// That drop as a fraction of the joint's (a link effect: all joints')
+    /// held-out MSE before the diagnosis.
+    pub heldout_share: f64,
+}
+
+/// The diagnosis report (`sdnn diagnose --format json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    pub model: String,
+    /// The preprocessing the recordings went through.
+    pub preprocessing: Pipeline,
+    /// How they were cut into cross-validation segments.
+    pub layout: Layout,
+    /// Decimated samples diagnosed.
+    pub samples: usize,
+    /// Residual RMS per joint (N m) and its share of the measured torque RMS.
+    pub residual_rms: Vec<f64>,
+    pub residual_share: Vec<f64>,
+    /// Correlation of each joint's residual with its velocity, its velocity
+    /// sign, its acceleration and a constant: where the residual concentrates.
+    pub regimes: Vec<Regimes>,
+    /// Held-out (leave-one-trajectory-out) torque MSE per joint, N m^2.
+    pub mse_before: Vec<f64>,
+    pub mse_after: Vec<f64>,
+    pub effects: Vec<Effect>,
+    /// Structure left in the residual that no candidate explains.
+    pub unexplained: Vec<Unexplained>,
+    /// Structure the data supports but no physical effect explains, e.g. a
+    /// negative armature (the model's inertia about a joint is too high).
+    pub notes: Vec<String>,
+    /// Every sample's residual before and after the named effects (fitted
+    /// to all data), for plots; not part of the JSON report.
+    #[serde(skip)]
+    pub residuals: ResidualSamples,
+}
+
+/// Per sample and joint (row `sample * dof + joint`): the joint's velocity
+/// and acceleration and its residual with the nominal model and with the
+/// named effects added.
+#[derive(Debug, Clone, Default)]
+pub struct ResidualSamples {
+    pub dof: usize,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+    pub before: Vec<f64>,
+    pub after: Vec<f64>,
+}
+
+/// Residual structure of one joint.
+#[derive(Debug, Clone, Serialize)]
+pub struct Regimes {
+    pub velocity: f64,
+    pub velocity_sign: f64,
+    pub acceleration: f64,
+    /// Correlation with the model's gravity torque of the joint (a
+    /// configuration-dependent error: mass, COM, payload).
+    pub gravity_load: f64,
+    pub mean: f64,
+}
+
+/// Selection settings.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// Minimum relative drop of the cross-validated MSE to accept an effect.
+    pub min_gain: f64,
+    /// Minimum |t| statistic of every parameter of an accepted effect.
+    pub min_t: f64,
+    /// The arm's size (m): a payload's centre of mass must lie within it
+    /// (see [`reach`]); infinite accepts any.
+    pub reach: f64,
+    /// A COM component whose 95% confidence half-width exceeds this fraction
+    /// of the arm's size ([`reach`] of the model; 1 m when the model has no
+    /// description) gets a note that the data barely determine it.
+    pub com_resolution: f64,
+    /// Cross-validation segments per recording; `None` chooses them (see
+    /// [`data::segment_counts`]).
+    pub segments: Option<usize>,
+}
+
+/// Relative eigenvalue of a candidate's unit-diagonal information matrix
+/// below which its parameters are taken as not identifiable.
+pub const COLLINEAR: f64 = 1e-6;
+
+/// The arm's size: the summed joint offsets of the chain, base to tip.
+pub fn reach(model: &dyn Dynamics) -> f64 {
+    crate::dynamics::parsed_description(model).map_or(f64::INFINITY, |d| {
+        d.chain().bodies.iter().map(|b| b.translation.norm()).sum()
+    })
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            min_gain: 0.10,
+            min_t: 3.0,
+            reach: f64::INFINITY,
+            com_resolution: 0.05,
+            segments: None,
+        }
+    }
+}
+
+/// Diagnoses `model` on raw recordings, preprocessed by `pipeline`.
+pub fn diagnose(
+    model: &dyn Dynamics,
+    recordings: &[Trajectory],
+    pipeline: &Pipeline,
+    settings: Settings,
+) -> anyhow::Result<Diagnosis> {
+    reject_duplicates(recordings)?;
+    let size = Some(reach(model))
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .unwrap_or(1.0);
+    let (data, mut candidates, layout) = stack(model, recordings, pipeline, settings.segments)?;
+    if layout.segments < 2 {
+        anyhow::bail!(
+            "the recordings are too short to cross-validate: {} segment(s) of {:.1} s",
+            layout.segments,
+            layout.segment_seconds
+        );
+    }
+    let moments = Moments::new(&data, &candidates);
+    let massless: Vec<usize> = (0..candidates.len())
+        .filter(|&c| !mass_identifiable(&moments, &candidates, c, size))
+        .collect();
+    for c in massless {
+        if let Shape::Body {
+            offset,
+            base_mass,
+            base_moment,
+        } = candidates[c].shape
+        {
+            candidates[c].shape = Shape::Moment {
+                offset,
+                base_mass,
+                base_moment,
+            };
+            candidates[c].names = vec!["mx", "my", "mz"];
+        }
+    }
+    let (selected, mut notes) = select(&moments, data.dof, &candidates, settings);
+    let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
+    let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
+    let effects = describe(
+        &moments,
+        &candidates,
+        &selected,
+        settings.com_resolution * size,
+        &mut notes,
+    );
+    let residuals = residual_samples(&data, &moments, &candidates, &selected);
+    Ok(Diagnosis {
+        model: model.name().to_string(),
+        preprocessing: pipeline.clone(),
+        layout,
+        samples: data.residual.len() / data.dof,
+        residual_rms: per_joint(&data, |r, _| r * r)
+            .iter()
+            .map(|v| v.sqrt())
+            .collect(),
+        residual_share: residual_share(&data),
+        regimes: regimes(&data, &candidates),
+        mse_before,
+        mse_after,
+        effects,
+        unexplained: unexplained::unexplained(&data, &residuals.after),
+        notes,
+        residuals,
+    })
+}

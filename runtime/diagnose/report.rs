@@ -1,0 +1,258 @@
+//! The report's numbers: named effects with intervals and shares, residual
+//! statistics and regimes, and the residual samples for plots.
+
+use nalgebra::{DVector, Vector3};
+
+use super::candidate::{Candidate, Shape, width};
+use super::data::Stacked;
+use super::fit::{Moments, cv_mse_per_joint, fit, fit_robust};
+use super::select::label;
+use super::{Effect, Kind, Regimes, ResidualSamples};
+
+/// The residuals before and after subtracting what the selected effects,
+/// fitted to all data, add to the model (as the applied model computes it).
+pub(super) fn residual_samples(
+    data: &Stacked,
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> ResidualSamples {
+    let mut after = data.residual.clone();
+    if let Some(fit) = fit(m, candidates, selected, |_| true) {
+        let columns = selected.iter().flat_map(|&c| {
+            let candidate = &candidates[c];
+            // As in `Moments::new`: an `applied` column scores the first.
+            (0..candidate.columns.len()).map(move |k| match (&candidate.applied, k) {
+                (Some(applied), 0) => applied,
+                _ => &candidate.columns[k],
+            })
+        });
+        for (column, coefficient) in columns.zip(fit.coefficients.iter()) {
+            after.axpy(-coefficient, column, 1.0);
+        }
+    }
+    ResidualSamples {
+        dof: data.dof,
+        qd: data.qd.as_slice().to_vec(),
+        qdd: data.qdd.as_slice().to_vec(),
+        before: data.residual.as_slice().to_vec(),
+        after: after.as_slice().to_vec(),
+    }
+}
+
+/// The named effects with their parameters, 95% intervals and the held-out
+/// MSE each removes, counted in selection order (the first effect's whole
+/// drop, then what each next one adds), so the parts add up to the drop
+/// the report shows.
+pub(super) fn describe(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    resolution: f64,
+    notes: &mut Vec<String>,
+) -> Vec<Effect> {
+    let Some((fit, se)) = fit_robust(m, candidates, selected) else {
+        return Vec::new();
+    };
+    let dof = m.xx.first().map_or(0, Vec::len);
+    let mut previous = cv_mse_per_joint(m, dof, candidates, &[]);
+    let before = previous.clone();
+    let mut offset = 0;
+    let mut effects = Vec::new();
+    for (position, &c) in selected.iter().enumerate() {
+        let candidate = &candidates[c];
+        let w = width(candidate);
+        let values: Vec<(f64, f64)> = (offset..offset + w)
+            .map(|k| (fit.theta[k], 1.96 * se[k]))
+            .collect();
+        offset += w;
+        let now = cv_mse_per_joint(m, dof, candidates, &selected[..=position]);
+        let joints: Vec<usize> = match candidate.joint {
+            Some(j) => vec![j],
+            None => (0..dof).collect(),
+        };
+        let removed: f64 = joints.iter().map(|&j| previous[j] - now[j]).sum();
+        let of: f64 = joints.iter().map(|&j| before[j]).sum();
+        previous = now;
+        let mut effect = effect(candidate, &values, resolution, notes);
+        effect.heldout_mse_removed = removed;
+        effect.heldout_share = (removed / of.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+        effects.push(effect);
+    }
+    effects
+}
+
+pub(super) fn effect(
+    candidate: &Candidate,
+    values: &[(f64, f64)],
+    resolution: f64,
+    notes: &mut Vec<String>,
+) -> Effect {
+    use serde_json::{Map, Value, json};
+    let mut parameters = Map::new();
+    let mut ci95 = Map::new();
+    if let Shape::Body {
+        base_mass,
+        base_moment,
+        ..
+    } = &candidate.shape
+    {
+        let (m, dm) = values[0];
+        parameters.insert("mass".into(), json!(m));
+        ci95.insert("mass".into(), json!([m - dm, m + dm]));
+        let mut com = Vec::new();
+        let mut interval = Vec::new();
+        for (axis, &(c, dc)) in ["x", "y", "z"].iter().zip(&values[1..]) {
+            com.push(json!(c));
+            interval.push(json!([c - dc, c + dc]));
+            if dc > resolution {
+                notes.push(format!(
+                    "{}: the COM's {axis} component is poorly determined by these data \
+                     (fit {c:.3} m, 95% CI half-width {dc:.3} m > {resolution:.3} m): the \
+                     recorded torques barely depend on it, so --apply's use of the fit changes \
+                     little here, but treat the value as unknown — record motions that move the \
+                     first joint together with the others to determine it",
+                    label(candidate)
+                ));
+            }
+        }
+        parameters.insert("com".into(), Value::Array(com));
+        ci95.insert("com".into(), Value::Array(interval));
+        if candidate.kind == Kind::InertialError {
+            let nominal_com = if *base_mass > 0.0 {
+                base_moment / *base_mass
+            } else {
+                Vector3::zeros()
+            };
+            parameters.insert("nominal_mass".into(), json!(base_mass));
+            parameters.insert(
+                "nominal_com".into(),
+                json!([nominal_com.x, nominal_com.y, nominal_com.z]),
+            );
+        }
+    } else if let Shape::Moment {
+        base_mass,
+        base_moment,
+        ..
+    } = &candidate.shape
+    {
+        // The first moment is what the data determine; its components are
+        // held to the COM resolution at the modelled mass.
+        let mut moment = Vec::new();
+        let mut interval = Vec::new();
+        for (axis, &(h, dh)) in ["x", "y", "z"].iter().zip(values) {
+            moment.push(json!(h));
+            interval.push(json!([h - dh, h + dh]));
+            if dh > resolution * base_mass {
+                notes.push(format!(
+                    "{}: the first moment's {axis} component is poorly determined by these \
+                     data (fit {h:.4} kg m, 95% CI half-width {dh:.4} kg m, a COM uncertainty \
+                     of {:.3} m at the modelled mass > {resolution:.3} m): treat the value as \
+                     unknown",
+                    label(candidate),
+                    dh / base_mass
+                ));
+            }
+        }
+        notes.push(format!(
+            "{}: the link's mass is not identifiable: its origin does not accelerate in the \
+             recorded motion (it lies on the axes of the joints that move it, so its mass \
+             column in the regressor is negligible against its first-moment columns), so its \
+             mass cannot be told from torques; reported: the first moment m*c (kg m), fitted \
+             with the mass as modelled ({base_mass:.4} kg) and the inertia about the COM as \
+             modelled; mass and com are null; --apply keeps the mass and moves the COM to \
+             first_moment / mass (that assumption)",
+            label(candidate)
+        ));
+        parameters.insert("mass".into(), Value::Null);
+        ci95.insert("mass".into(), Value::Null);
+        parameters.insert("com".into(), json!([null, null, null]));
+        ci95.insert("com".into(), json!([null, null, null]));
+        parameters.insert("first_moment".into(), Value::Array(moment));
+        ci95.insert("first_moment".into(), Value::Array(interval));
+        let nominal_com = base_moment / *base_mass;
+        parameters.insert("nominal_mass".into(), json!(base_mass));
+        parameters.insert(
+            "nominal_com".into(),
+            json!([nominal_com.x, nominal_com.y, nominal_com.z]),
+        );
+        parameters.insert(
+            "nominal_first_moment".into(),
+            json!([base_moment.x, base_moment.y, base_moment.z]),
+        );
+    } else {
+        for (name, (value, half)) in candidate.names.iter().zip(values) {
+            parameters.insert((*name).into(), json!(value));
+            ci95.insert((*name).into(), json!([value - half, value + half]));
+        }
+    }
+    Effect {
+        kind: candidate.kind,
+        joint: candidate.joint.map(|j| j + 1),
+        link: candidate.link.as_ref().map(|(_, name)| name.clone()),
+        parameters,
+        ci95,
+        heldout_mse_removed: 0.0,
+        heldout_share: 0.0,
+    }
+}
+
+pub(super) fn per_joint(data: &Stacked, f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
+    let mut sum = vec![0.0; data.dof];
+    for r in 0..data.residual.len() {
+        sum[r % data.dof] += f(data.residual[r], data.measured[r]);
+    }
+    let samples = (data.residual.len() / data.dof).max(1) as f64;
+    sum.iter().map(|s| s / samples).collect()
+}
+
+pub(super) fn residual_share(data: &Stacked) -> Vec<f64> {
+    let residual = per_joint(data, |r, _| r * r);
+    let measured = per_joint(data, |_, m| m * m);
+    residual
+        .iter()
+        .zip(&measured)
+        .map(|(r, m)| (r / m.max(f64::MIN_POSITIVE)).sqrt())
+        .collect()
+}
+
+pub(super) fn regimes(data: &Stacked, candidates: &[Candidate]) -> Vec<Regimes> {
+    (0..data.dof)
+        .map(|j| {
+            let column = |kind: Kind| {
+                candidates
+                    .iter()
+                    .find(|c| c.kind == kind && c.joint == Some(j))
+                    .map(|c| &c.columns[0])
+            };
+            let corr = |kind| column(kind).map_or(0.0, |c| correlation(data, j, c));
+            let rows = (0..data.residual.len()).filter(|r| r % data.dof == j);
+            let count = rows.clone().count().max(1) as f64;
+            Regimes {
+                velocity: corr(Kind::ViscousFriction),
+                velocity_sign: corr(Kind::CoulombFriction),
+                acceleration: corr(Kind::Armature),
+                gravity_load: correlation(data, j, &data.gravity),
+                mean: rows.map(|r| data.residual[r]).sum::<f64>() / count,
+            }
+        })
+        .collect()
+}
+
+pub(super) fn correlation(data: &Stacked, joint: usize, column: &DVector<f64>) -> f64 {
+    let rows: Vec<usize> = (0..data.residual.len())
+        .filter(|r| r % data.dof == joint)
+        .collect();
+    let mean = |f: &dyn Fn(usize) -> f64| {
+        rows.iter().map(|&r| f(r)).sum::<f64>() / rows.len().max(1) as f64
+    };
+    let (mr, mc) = (mean(&|r| data.residual[r]), mean(&|r| column[r]));
+    let cov = mean(&|r| (data.residual[r] - mr) * (column[r] - mc));
+    let vr = mean(&|r| (data.residual[r] - mr).powi(2));
+    let vc = mean(&|r| (column[r] - mc).powi(2));
+    if vr <= 0.0 || vc <= 0.0 {
+        0.0
+    } else {
+        cov / (vr * vc).sqrt()
+    }
+}

@@ -1,0 +1,367 @@
+//! Forward selection of effects by held-out MSE, with significance,
+//! physical-sign and identifiability checks, and a backward prune.
+
+use nalgebra::Vector3;
+
+use super::candidate::{Candidate, Shape, columns_of, width};
+use super::fit::{
+    Fit, Moments, cv_mse_per_joint, fit, fit_robust, identifiability, pseudo_solve,
+};
+use super::{COLLINEAR, Kind, Settings};
+
+/// Whether the data identify the mass of an `inertial_error` candidate's
+/// link from its own regressor column, i.e. from the acceleration of the
+/// link's origin (true for every other candidate). The mass is put in the
+/// first moments' units by the arm's size `lever` (a mass change dm acts
+/// like a first-moment change of dm * lever), which makes the link's 4x4
+/// information matrix of (mass, first moment) dimensionally consistent; the
+/// mass is identifiable when its information left once the first moments
+/// are projected out (the Schur complement) is at least [`COLLINEAR`] times
+/// that matrix's largest eigenvalue. A link whose origin lies on the axes of
+/// all joints that move it has a zero mass column: its mass enters the
+/// torques only through the parallel-axis terms of an assumed inertia about
+/// the COM, which the data do not check.
+pub(super) fn mass_identifiable(m: &Moments, candidates: &[Candidate], c: usize, lever: f64) -> bool {
+    let candidate = &candidates[c];
+    if candidate.kind != Kind::InertialError
+        || !matches!(candidate.shape, Shape::Body { base_mass, .. } if base_mass > 0.0)
+    {
+        return true;
+    }
+    let columns: Vec<usize> = columns_of(candidates, &[c]).into_iter().take(4).collect();
+    let (mut a, _) = m.normal_equations(&columns, |_| true);
+    for k in 0..4 {
+        a[(0, k)] /= lever;
+        a[(k, 0)] /= lever;
+    }
+    let largest = a.symmetric_eigenvalues().max();
+    if largest <= 0.0 {
+        return false;
+    }
+    let h = a.view((1, 1), (3, 3)).into_owned();
+    let coupling = a.view((1, 0), (3, 1)).column(0).into_owned();
+    let schur = a[(0, 0)] - coupling.dot(&pseudo_solve(&h, &coupling));
+    schur >= COLLINEAR * largest
+}
+
+/// Largest relative drop of any joint's MSE from `before` to `after`.
+pub(super) fn relative_gain(before: &[f64], after: &[f64]) -> f64 {
+    before
+        .iter()
+        .zip(after)
+        .map(|(b, a)| if *b > 0.0 { (b - a) / b } else { 0.0 })
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Forward selection by cross-validated MSE with a significance check: each
+/// step adds the candidate that lowers some joint's held-out MSE the most
+/// (relative to that joint's current MSE, so a weak joint's effect is not
+/// drowned by a strong joint's torque scale). Candidates whose parameters
+/// these data cannot identify on their own (see the module docs) do not
+/// compete; if one would still explain structure at the end, a note says so.
+pub(super) fn select(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    settings: Settings,
+) -> (Vec<usize>, Vec<String>) {
+    let mut selected: Vec<usize> = Vec::new();
+    let mut refused: Vec<usize> = Vec::new();
+    let mut notes = Vec::new();
+    let unidentifiable: Vec<usize> = (0..candidates.len())
+        .filter(|&c| {
+            fit(m, candidates, &[c], |_| true).is_none_or(|f| {
+                identifiability(&f.information, 0..width(&candidates[c])) < COLLINEAR
+            })
+        })
+        .collect();
+    let mut current = cv_mse_per_joint(m, dof, candidates, &[]);
+    loop {
+        let best = (0..candidates.len())
+            .filter(|c| {
+                !selected.contains(c) && !refused.contains(c) && !unidentifiable.contains(c)
+            })
+            .map(|c| {
+                let mut trial = selected.clone();
+                trial.push(c);
+                let mse = cv_mse_per_joint(m, dof, candidates, &trial);
+                (c, relative_gain(&current, &mse), mse)
+            })
+            .filter(|(_, gain, _)| gain.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((c, gain, mse)) = best else { break };
+        let mut trial = selected.clone();
+        trial.push(c);
+        if gain < settings.min_gain {
+            break;
+        }
+        let Some(full) = fit(m, candidates, &trial, |_| true) else {
+            break;
+        };
+        let offset: usize = selected.iter().map(|&s| width(&candidates[s])).sum();
+        let w = width(&candidates[c]);
+        if identifiability(&full.information, offset..offset + w) < COLLINEAR {
+            notes.push(format!(
+                "{}: would cut a joint's held-out MSE by {:.0}%, but its parameters are collinear \
+                 with the effects already named ({}); not named",
+                label(&candidates[c]),
+                100.0 * gain,
+                selected
+                    .iter()
+                    .map(|&s| label(&candidates[s]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            refused.push(c);
+            continue;
+        }
+        // A nonlinear candidate (a payload trading mass for lever arm) can
+        // win on fit yet leave its parameters undetermined: refuse it and let
+        // the others compete.
+        let Some(values) = significant(m, candidates, &trial, &full, settings.min_t) else {
+            notes.push(format!(
+                "{}: would cut a joint's held-out MSE by {:.0}%, but its parameters are not \
+                 significant (|t| <= {}); not named",
+                label(&candidates[c]),
+                100.0 * gain,
+                settings.min_t
+            ));
+            refused.push(c);
+            continue;
+        };
+        if let Err(note) = physical(&candidates[c], &values, gain, settings.reach) {
+            notes.push(note);
+            refused.push(c);
+            continue;
+        }
+        selected = trial;
+        current = mse;
+    }
+    prune(m, candidates, &mut selected, &mut notes, settings);
+    for &c in &unidentifiable {
+        let mut trial = selected.clone();
+        trial.push(c);
+        let gain = relative_gain(&current, &cv_mse_per_joint(m, dof, candidates, &trial));
+        if gain >= settings.min_gain {
+            notes.push(format!(
+                "{}: would cut a joint's held-out MSE by {:.0}%, but these data cannot identify \
+                 its parameters (they act only through a combination of them, e.g. a base \
+                 parameter: only the inertia about the first joint's axis matters for the first \
+                 link); not named — record motions that excite it, or look for an effect with \
+                 the same signature",
+                label(&candidates[c]),
+                100.0 * gain
+            ));
+        }
+    }
+    (selected, notes)
+}
+
+/// Backward check of the forward selection: an effect named early can lose
+/// its significance (or its physical sign) once later effects share its
+/// work. Such effects are dropped, weakest first, until every named effect
+/// holds up in the final joint fit.
+pub(super) fn prune(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &mut Vec<usize>,
+    notes: &mut Vec<String>,
+    settings: Settings,
+) {
+    loop {
+        let failing = selected.iter().position(|&c| {
+            let mut trial: Vec<usize> = selected.iter().copied().filter(|&s| s != c).collect();
+            trial.push(c);
+            let Some(full) = fit(m, candidates, &trial, |_| true) else {
+                return true;
+            };
+            match significant(m, candidates, &trial, &full, settings.min_t) {
+                Some(values) => physical(&candidates[c], &values, 0.0, settings.reach).is_err(),
+                None => true,
+            }
+        });
+        let Some(position) = failing else { return };
+        let dropped = selected.remove(position);
+        notes.push(format!(
+            "{}: named while selecting, but not significant or not physical once the other \
+             effects are fitted with it; dropped",
+            label(&candidates[dropped])
+        ));
+    }
+}
+
+/// How a candidate is named in notes.
+pub(super) fn label(candidate: &Candidate) -> String {
+    let kind = candidate.kind.name();
+    match (&candidate.joint, &candidate.link) {
+        (Some(j), _) => format!("{kind} on joint {}", j + 1),
+        (None, Some((k, name))) => format!("{kind} of link {} (`{name}`)", k + 1),
+        (None, None) => kind,
+    }
+}
+
+/// Whether fitted `values` can be the candidate's physical effect; if not,
+/// the note that says what the data show instead.
+pub(super) fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Result<(), String> {
+    let at = match (&candidate.joint, &candidate.link) {
+        (Some(j), _) => format!("joint {}", j + 1),
+        (None, Some((k, name))) if candidate.kind == Kind::InertialError => {
+            format!("link {} (`{name}`)", k + 1)
+        }
+        _ => "the last link".to_string(),
+    };
+    let percent = 100.0 * gain;
+    let value = values[0];
+    let meaning = match candidate.kind {
+        Kind::TorqueOffset => return Ok(()),
+        Kind::InertialError if matches!(candidate.shape, Shape::Moment { .. }) => {
+            let Shape::Moment { base_mass, .. } = candidate.shape else {
+                unreachable!("matched above")
+            };
+            let distance = values.iter().map(|h| h * h).sum::<f64>().sqrt() / base_mass;
+            if distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a first moment that puts the centre of mass {distance:.2} m \
+                 from the link origin at the modelled mass {base_mass:.4} kg (the arm's size is \
+                 {reach:.2} m): not a physical body; not named (it would cut a joint's held-out \
+                 MSE by {percent:.0}%)"
+            ));
+        }
+        Kind::InertialError => {
+            let distance = values[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
+            if value > 0.0 && distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a mass of {value:.4} kg with its centre of mass {distance:.2} m \
+                 from the link origin (the arm's size is {reach:.2} m): not a physical body; not \
+                 named (it would cut a joint's held-out MSE by {percent:.0}%)"
+            ));
+        }
+        _ if value <= 0.0 => match candidate.kind {
+            Kind::Armature => {
+                "the model's inertia about this joint is too high (an inertial error, not a rotor)"
+            }
+            Kind::ViscousFriction => {
+                "torque falls with speed: not viscous friction (check the velocity filter, or a Stribeck effect)"
+            }
+            Kind::CoulombFriction => {
+                "the residual opposes friction's direction: check the torque sign convention"
+            }
+            _ => "the last link is lighter than modelled (an inertial error, not a payload)",
+        },
+        Kind::Payload => {
+            let com = &values[1..];
+            let distance = com.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a mass of only {value:.4} kg with its centre of mass at \
+                 [{:.3}, {:.3}, {:.3}] m, {distance:.2} m away, beyond the arm's reach \
+                 ({reach:.2} m): a first-moment change, i.e. an inertial error of the last link, \
+                 not a payload; not named (it would cut a joint's held-out MSE by {percent:.0}%)",
+                com[0], com[1], com[2]
+            ));
+        }
+        _ => return Ok(()),
+    };
+    let kind = candidate.kind.name();
+    Err(format!(
+        "{at}: the data fit {kind} = {value:.4}, a negative value (it would cut a joint's \
+         held-out MSE by {percent:.0}%): {meaning}; not named"
+    ))
+}
+
+/// The fitted parameters of the last candidate of `trial` when it is
+/// significant: every parameter of a joint effect; a payload's mass (its COM
+/// components may be zero); for an inertial error, a change of the mass or
+/// of some COM component from the model's. Each |t| uses the larger of the
+/// least-squares and the jackknife standard error, so a parameter that
+/// swings from trajectory to trajectory is not significant however many
+/// correlated samples pin it down within each.
+pub(super) fn significant(
+    m: &Moments,
+    candidates: &[Candidate],
+    trial: &[usize],
+    full: &Fit,
+    min_t: f64,
+) -> Option<Vec<f64>> {
+    let (_, se) = fit_robust(m, candidates, trial)?;
+    let theta = &full.theta;
+    let added = *trial.last()?;
+    let offset: usize = trial[..trial.len() - 1]
+        .iter()
+        .map(|&c| width(&candidates[c]))
+        .sum();
+    let w = width(&candidates[added]);
+    let candidate = &candidates[added];
+    let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
+    let ok = match (&candidate.kind, &candidate.shape) {
+        (Kind::Payload, _) => t(0, 0.0) > min_t,
+        (
+            Kind::InertialError,
+            Shape::Body {
+                base_mass,
+                base_moment,
+                ..
+            },
+        ) => {
+            let com = if *base_mass > 0.0 {
+                base_moment / *base_mass
+            } else {
+                Vector3::zeros()
+            };
+            let nominal = [*base_mass, com.x, com.y, com.z];
+            (0..4).any(|k| t(k, nominal[k]) > min_t)
+        }
+        (Kind::InertialError, Shape::Moment { base_moment, .. }) => {
+            (0..3).any(|k| t(k, base_moment[k]) > min_t)
+        }
+        _ => (0..w).all(|k| t(k, 0.0) > min_t),
+    };
+    ok.then(|| theta.rows(offset, w).iter().copied().collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidate::Shape;
+
+    fn candidate(kind: Kind, joint: Option<usize>) -> Candidate {
+        Candidate {
+            kind,
+            joint,
+            link: None,
+            names: vec![],
+            columns: vec![],
+            applied: None,
+            shape: Shape::Linear,
+        }
+    }
+
+    #[test]
+    fn impossible_signs_become_notes() {
+        let armature = candidate(Kind::Armature, Some(3));
+        let note = physical(&armature, &[-0.1], 0.15, 1.0).unwrap_err();
+        assert!(
+            note.starts_with("joint 4:") && note.contains("inertia"),
+            "{note}"
+        );
+        assert!(physical(&armature, &[0.1], 0.15, 1.0).is_ok());
+        let offset = candidate(Kind::TorqueOffset, Some(0));
+        assert!(physical(&offset, &[-0.3], 0.5, 1.0).is_ok());
+    }
+
+    #[test]
+    fn a_payload_beyond_the_arm_is_a_note() {
+        let payload = candidate(Kind::Payload, None);
+        // 0.5 kg at 0.1 m: a payload.
+        assert!(physical(&payload, &[0.5, 0.0, 0.0, 0.05], 0.3, 1.0).is_ok());
+        // 7 g at 1.7 m (a first moment of 0.012 kg m): beyond the arm.
+        let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], 0.3, 1.0).unwrap_err();
+        assert!(note.contains("first-moment"), "{note}");
+    }
+}

@@ -1,0 +1,171 @@
+//! The diagnosis as text a person reads: the same kind names as the JSON,
+//! numbers to three significant digits, each effect's share of its joint's
+//! held-out MSE.
+
+use std::fmt::Write;
+
+use super::{Diagnosis, Effect, Kind};
+
+impl Diagnosis {
+    /// The text report (`sdnn diagnose` without `--format json`).
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let l = &self.layout;
+        let _ = writeln!(
+            out,
+            "model {}: {} samples in {} cross-validation segments of {} s",
+            self.model,
+            self.samples,
+            l.segments,
+            sig(l.segment_seconds)
+        );
+        let _ = writeln!(out, "{}", self.preprocessing.summary());
+        for j in 0..self.mse_before.len() {
+            let (before, after) = (self.mse_before[j], self.mse_after[j]);
+            let _ = writeln!(
+                out,
+                "joint {}: residual RMS {} N m ({:.1}% of the torque RMS); held-out MSE {} -> {} N m^2 ({})",
+                j + 1,
+                sig(self.residual_rms[j]),
+                100.0 * self.residual_share[j],
+                sig(before),
+                sig(after),
+                percent_change(before, after)
+            );
+            let r = &self.regimes[j];
+            let _ = writeln!(
+                out,
+                "  residual correlates with velocity {:+.2}, its sign {:+.2}, acceleration {:+.2}, \
+                 gravity load {:+.2}; mean {} N m",
+                r.velocity,
+                r.velocity_sign,
+                r.acceleration,
+                r.gravity_load,
+                sig(r.mean)
+            );
+        }
+        if self.effects.is_empty() {
+            let _ = writeln!(out, "missing effects: none significant");
+        } else {
+            let _ = writeln!(out, "missing effects (in the order named):");
+        }
+        for e in &self.effects {
+            let _ = writeln!(out, "  {}", effect_line(e));
+        }
+        for u in &self.unexplained {
+            let _ = writeln!(out, "unexplained: {}", u.text);
+        }
+        for note in &self.notes {
+            let _ = writeln!(out, "note: {note}");
+        }
+        out
+    }
+}
+
+fn effect_line(e: &Effect) -> String {
+    let place = match (e.joint, &e.link) {
+        (Some(j), _) => format!("joint {j}"),
+        (None, Some(link)) => format!("link `{link}`"),
+        (None, None) => "the last link".to_string(),
+    };
+    let values: Vec<String> = e
+        .parameters
+        .iter()
+        .filter(|(_, v)| !v.is_null() && !is_null_array(v))
+        .map(|(name, value)| {
+            let interval = e.ci95.get(name).map_or(String::new(), interval_text);
+            format!("{name} {}{}{interval}", value_text(value), unit(e.kind, name))
+        })
+        .collect();
+    let whose = match e.joint {
+        Some(j) => format!("joint {j}'s"),
+        None => "the joints'".to_string(),
+    };
+    format!(
+        "{} on {place}: {}; removes {:.0}% of {whose} held-out MSE ({} N m^2)",
+        e.kind.name(),
+        values.join(", "),
+        100.0 * e.heldout_share,
+        sig(e.heldout_mse_removed)
+    )
+}
+
+fn is_null_array(v: &serde_json::Value) -> bool {
+    v.as_array().is_some_and(|a| a.iter().all(|x| x.is_null()))
+}
+
+fn value_text(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Number(n) => n.as_f64().map_or(n.to_string(), sig),
+        serde_json::Value::Array(a) => {
+            format!("[{}]", a.iter().map(value_text).collect::<Vec<_>>().join(", "))
+        }
+        other => other.to_string(),
+    }
+}
+
+/// `(95% CI a .. b)` for a scalar interval, per component for vectors.
+fn interval_text(v: &serde_json::Value) -> String {
+    let Some(items) = v.as_array() else {
+        return String::new();
+    };
+    let pair = |p: &serde_json::Value| -> Option<String> {
+        let p = p.as_array()?;
+        Some(format!("{} .. {}", sig(p.first()?.as_f64()?), sig(p.get(1)?.as_f64()?)))
+    };
+    if items.first().is_some_and(|x| x.is_number()) {
+        return pair(v).map_or(String::new(), |p| format!(" (95% CI {p})"));
+    }
+    let parts: Vec<String> = items.iter().filter_map(pair).collect();
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!(" (95% CI {})", parts.join("; "))
+    }
+}
+
+fn unit(kind: Kind, name: &str) -> &'static str {
+    match (kind, name) {
+        (Kind::ViscousFriction, _) => " N m s/rad",
+        (Kind::CoulombFriction | Kind::TorqueOffset, _) => " N m",
+        (Kind::Armature, _) => " kg m^2",
+        (_, "mass" | "nominal_mass") => " kg",
+        (_, "first_moment" | "nominal_first_moment") => " kg m",
+        _ => " m",
+    }
+}
+
+fn percent_change(before: f64, after: f64) -> String {
+    if before > 0.0 {
+        format!("{:+.0}%", 100.0 * (after - before) / before)
+    } else {
+        "unchanged".to_string()
+    }
+}
+
+/// Three significant digits, without exponent for everyday magnitudes.
+pub fn sig(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    if !(-4..6).contains(&magnitude) {
+        return format!("{x:.2e}");
+    }
+    let decimals = (2 - magnitude).max(0) as usize;
+    format!("{x:.decimals$}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn three_significant_digits() {
+        assert_eq!(sig(0.302_449), "0.302");
+        assert_eq!(sig(12.345), "12.3");
+        assert_eq!(sig(1234.5), "1234");
+        assert_eq!(sig(-0.000_123_4), "-0.000123");
+        assert_eq!(sig(2.5e-9), "2.50e-9");
+    }
+}

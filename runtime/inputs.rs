@@ -1,0 +1,225 @@
+//! Command-line options for reading and preprocessing measured recordings,
+//! shared by every command that reads them.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Result, bail};
+use clap::Args;
+
+use crate::cli::AngleArg;
+use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
+use crate::trajectory::{ReadOptions, Trajectory, read_csv};
+
+/// Options of reading measured CSV files.
+#[derive(Debug, Args, Clone)]
+pub struct InputArgs {
+    /// Unit of q, qd and qdd in the files (Kinova's API logs degrees).
+    #[arg(long, value_enum, default_value_t)]
+    pub angles: AngleArg,
+    /// Resample jittery timestamps to this uniform rate (Hz) by linear interpolation.
+    #[arg(long)]
+    pub resample: Option<f64>,
+    /// Map a file column to a contract column, e.g. `--column time=t --column pos1=q1`.
+    #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = parse_mapping)]
+    pub columns: Vec<(String, String)>,
+    /// File columns to ignore (extra columns are an error otherwise).
+    #[arg(long = "ignore-column", value_name = "NAME")]
+    pub ignored: Vec<String>,
+}
+
+fn parse_mapping(text: &str) -> Result<(String, String), String> {
+    match text.split_once('=') {
+        Some((from, to)) if !from.is_empty() && !to.is_empty() => {
+            Ok((from.to_string(), to.to_string()))
+        }
+        _ => Err(format!(
+            "expected FILE_COLUMN=CONTRACT_COLUMN, found `{text}`"
+        )),
+    }
+}
+
+impl InputArgs {
+    pub fn options(&self, dof: Option<usize>, min_samples: usize) -> ReadOptions {
+        ReadOptions {
+            units: self.angles.into(),
+            dof,
+            resample_hz: self.resample,
+            min_samples,
+            renames: self.columns.iter().cloned().collect(),
+            ignored: self.ignored.clone(),
+        }
+    }
+
+    /// Reads raw recordings (`dof`: the model's joint count, if known).
+    pub fn read_all(&self, paths: &[PathBuf], dof: Option<usize>) -> Result<Vec<Trajectory>> {
+        paths
+            .iter()
+            .map(|path| Ok(read_csv(path, &self.options(dof, 2))?))
+            .collect()
+    }
+}
+
+/// Preprocessing options: a preset, and settings in physical units.
+#[derive(Debug, Args, Clone)]
+pub struct FilterArgs {
+    /// `auto`: zero-phase low-pass of q, qd and torque at a cut-off chosen
+    /// from the data's motion bandwidth, then decimation to 10x the cut-off
+    /// (the report prints both); `thesis`: the thesis's 100 Hz pipeline (keep
+    /// every 10th sample, 0.4 s moving average, torque unfiltered).
+    #[arg(long, value_enum, default_value_t)]
+    pub preset: Preset,
+    /// auto: the low-pass cut-off in Hz instead of the chosen one.
+    #[arg(long, value_name = "HZ")]
+    pub cutoff: Option<f64>,
+    /// auto: the decimated sample rate in Hz instead of 10x the cut-off.
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<f64>,
+    /// thesis: keep every n-th sample [default: 10].
+    #[arg(long)]
+    pub downsample: Option<usize>,
+    /// thesis: velocity filter, `sma` (centred moving average), `sg`
+    /// (Savitzky-Golay, cubic) or `none` [default: sma].
+    #[arg(long)]
+    pub filter: Option<String>,
+    /// thesis: filter window in seconds at the downsampled rate [default: 0.4].
+    #[arg(long, value_name = "SECONDS")]
+    pub window: Option<f64>,
+    /// thesis: also smooth the torque with the acceleration's filter (auto
+    /// always filters the torque like the states).
+    #[arg(long)]
+    pub filter_torque: bool,
+}
+
+impl FilterArgs {
+    /// The pipeline for these raw recordings.
+    pub fn resolve(&self, recordings: &[Trajectory]) -> Result<Pipeline> {
+        match self.preset {
+            Preset::Auto => {
+                let thesis_only = [
+                    ("--downsample", self.downsample.is_some()),
+                    ("--filter", self.filter.is_some()),
+                    ("--window", self.window.is_some()),
+                    ("--filter-torque", self.filter_torque),
+                ];
+                if let Some((flag, _)) = thesis_only.iter().find(|(_, set)| *set) {
+                    bail!(
+                        "{flag} sets the thesis pipeline: pass `--preset thesis` with it (the auto preset \
+                         takes --cutoff and --rate in Hz)"
+                    );
+                }
+                Ok(Pipeline::auto(recordings, self.cutoff, self.rate)?)
+            }
+            Preset::Thesis => {
+                if self.cutoff.is_some() || self.rate.is_some() {
+                    bail!("--cutoff and --rate belong to `--preset auto`");
+                }
+                let rate = recordings
+                    .first()
+                    .map_or(1000.0, crate::preprocess::auto::sample_rate);
+                Ok(Pipeline::fixed(Preset::Thesis, self.thesis(rate)?))
+            }
+        }
+    }
+
+    /// These options as command-line flags (empty for the defaults), for
+    /// a command the report suggests.
+    pub fn command_line(&self, angles: AngleArg) -> String {
+        let mut flags = String::new();
+        if angles == AngleArg::Deg {
+            flags.push_str(" --angles deg");
+        }
+        if self.preset == Preset::Thesis {
+            flags.push_str(" --preset thesis");
+        }
+        let mut add = |name: &str, value: Option<String>| {
+            if let Some(v) = value {
+                flags.push_str(&format!(" --{name} {v}"));
+            }
+        };
+        add("cutoff", self.cutoff.map(|v| v.to_string()));
+        add("rate", self.rate.map(|v| v.to_string()));
+        add("downsample", self.downsample.map(|v| v.to_string()));
+        add("filter", self.filter.clone());
+        add("window", self.window.map(|v| v.to_string()));
+        if self.filter_torque {
+            flags.push_str(" --filter-torque");
+        }
+        flags
+    }
+
+    /// The thesis settings with these overrides, for recordings at `rate` Hz.
+    fn thesis(&self, rate: f64) -> Result<Preprocess> {
+        let downsample = self.downsample.unwrap_or(10);
+        if downsample == 0 {
+            bail!("--downsample must be at least 1");
+        }
+        let window_s = self.window.unwrap_or(0.4);
+        if !(window_s.is_finite() && window_s > 0.0) {
+            bail!("--window must be a positive number of seconds, got {window_s}");
+        }
+        let samples = ((window_s * rate / downsample as f64).round() as usize).max(1);
+        let filter = match self.filter.as_deref().unwrap_or("sma") {
+            "sma" => Filter::Sma {
+                window: samples,
+                centered: true,
+            },
+            "sg" => Filter::SavitzkyGolay {
+                window: (samples | 1).max(5),
+                order: 3,
+            },
+            "none" => Filter::None,
+            other => bail!("--filter must be `sma`, `sg` or `none`, not `{other}`"),
+        };
+        Ok(Preprocess {
+            downsample,
+            filter,
+            filter_torque: self.filter_torque,
+        })
+    }
+}
+
+/// Reads measured files with the model's joint count and preprocesses them
+/// with one pipeline resolved on all of them.
+pub fn load(
+    paths: &[PathBuf],
+    dof: Option<usize>,
+    input: &InputArgs,
+    filter: &FilterArgs,
+) -> Result<(Vec<Trajectory>, Pipeline)> {
+    let raw = input.read_all(paths, dof)?;
+    let pipeline = filter.resolve(&raw)?;
+    let processed = raw
+        .iter()
+        .zip(paths)
+        .map(|(traj, path)| {
+            pipeline
+                .apply(traj)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((processed, pipeline))
+}
+
+/// One file with its own resolved pipeline (commands that process files
+/// one at a time).
+pub fn load_one(
+    path: &Path,
+    dof: Option<usize>,
+    input: &InputArgs,
+    filter: &FilterArgs,
+) -> Result<(Trajectory, Pipeline)> {
+    let (mut trajectories, pipeline) = load(&[path.to_path_buf()], dof, input, filter)?;
+    Ok((trajectories.remove(0), pipeline))
+}
+
+/// A file that already carries filtered qd and qdd (`--preprocessed`).
+pub fn load_preprocessed(path: &Path, dof: Option<usize>, input: &InputArgs) -> Result<Trajectory> {
+    let traj = read_csv(path, &input.options(dof, 2))?;
+    if traj.qdd().is_none() {
+        bail!(
+            "{}: --preprocessed needs qdd1..qddN columns",
+            path.display()
+        );
+    }
+    Ok(traj)
+}

@@ -1,0 +1,134 @@
+//! The preprocessing a command runs on its recordings: a preset resolved
+//! against the data, the same for every command that reads measurements
+//! (`evaluate`, `diagnose`, `study`, `train`, `synth`, `preprocess`).
+
+use serde::Serialize;
+
+use super::auto::{self, Choice, sample_rate};
+use super::{Filter, Preprocess, PreprocessError};
+use crate::trajectory::Trajectory;
+
+/// A named set of preprocessing defaults.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Preset {
+    /// Chosen from the data (see [`auto`]).
+    #[default]
+    Auto,
+    /// Thesis section 2.4 (100 Hz after keeping every 10th sample).
+    Thesis,
+}
+
+/// The resolved preprocessing of a set of recordings.
+#[derive(Debug, Clone, Serialize)]
+pub struct Pipeline {
+    pub preset: Preset,
+    /// What the data said and what was chosen (auto only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub choice: Option<Choice>,
+    /// The settings (for auto, `downsample` is per recording: see
+    /// [`Pipeline::for_recording`]).
+    pub settings: Preprocess,
+}
+
+impl Pipeline {
+    /// The auto preset on `recordings` (raw), with an optional cut-off and
+    /// decimated rate in Hz replacing the chosen ones.
+    pub fn auto(
+        recordings: &[Trajectory],
+        cutoff_hz: Option<f64>,
+        rate_hz: Option<f64>,
+    ) -> Result<Pipeline, PreprocessError> {
+        let mut choice = auto::choose(recordings);
+        if let Some(cutoff) = cutoff_hz {
+            let nyquist = 0.5 * choice.sample_rate_hz;
+            if !(cutoff.is_finite() && cutoff > 0.0 && cutoff < nyquist) {
+                return Err(PreprocessError::InvalidCutoff {
+                    cutoff_hz: cutoff,
+                    nyquist_hz: nyquist,
+                });
+            }
+            choice.cutoff_hz = cutoff;
+            choice.decimated_rate_hz = (auto::RATE_PER_CUTOFF * cutoff).min(choice.sample_rate_hz);
+        }
+        if let Some(rate) = rate_hz {
+            if !(rate.is_finite() && rate >= 2.0 * choice.cutoff_hz) {
+                return Err(PreprocessError::InvalidRate {
+                    rate_hz: rate,
+                    cutoff_hz: choice.cutoff_hz,
+                });
+            }
+            choice.decimated_rate_hz = rate.min(choice.sample_rate_hz);
+        }
+        let settings = Preprocess::identification(&choice, choice.sample_rate_hz);
+        Ok(Pipeline {
+            preset: Preset::Auto,
+            choice: Some(choice),
+            settings,
+        })
+    }
+
+    /// Fixed settings (the thesis preset or explicit options).
+    pub fn fixed(preset: Preset, settings: Preprocess) -> Pipeline {
+        Pipeline {
+            preset,
+            choice: None,
+            settings,
+        }
+    }
+
+    /// The settings for one recording: for auto, its decimation follows its
+    /// own sample rate.
+    pub fn for_recording(&self, traj: &Trajectory) -> Preprocess {
+        match &self.choice {
+            Some(choice) => Preprocess::identification(choice, sample_rate(traj)),
+            None => self.settings.clone(),
+        }
+    }
+
+    /// Preprocesses one recording.
+    pub fn apply(&self, traj: &Trajectory) -> Result<Trajectory, PreprocessError> {
+        self.for_recording(traj).apply(traj)
+    }
+
+    /// One line for reports.
+    pub fn summary(&self) -> String {
+        let s = &self.settings;
+        let torque = if s.filter_torque {
+            "torque filtered alike"
+        } else {
+            "torque unfiltered"
+        };
+        match (&self.choice, &s.filter) {
+            (Some(c), Filter::Butterworth { cutoff_hz }) => {
+                let bandwidth = c
+                    .motion_bandwidth_hz
+                    .map_or("not above the noise".to_string(), |b| format!("{b:.2} Hz"));
+                format!(
+                    "preprocessing (auto, from the data): {:.0} Hz recordings, motion bandwidth \
+                     {bandwidth}; zero-phase Butterworth low-pass at {cutoff_hz:.2} Hz of q, qd and \
+                     tau, qdd by central differences, decimated to {:.0} Hz ({torque})",
+                    c.sample_rate_hz, c.decimated_rate_hz
+                )
+            }
+            (_, filter) => format!(
+                "preprocessing ({}): keep every {} sample(s), {}, {torque}",
+                match self.preset {
+                    Preset::Auto => "explicit",
+                    Preset::Thesis => "thesis",
+                },
+                s.downsample,
+                match filter {
+                    Filter::None => "no smoothing".to_string(),
+                    Filter::Sma { window, .. } => format!("{window}-sample moving average"),
+                    Filter::SavitzkyGolay { window, order } => {
+                        format!("{window}-sample Savitzky-Golay of order {order}")
+                    }
+                    Filter::Butterworth { cutoff_hz } => {
+                        format!("zero-phase Butterworth at {cutoff_hz:.2} Hz")
+                    }
+                }
+            ),
+        }
+    }
+}
