@@ -149,7 +149,8 @@ pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
 /// The description file a `--model` argument names, when it is a path
 /// (ends in `.toml`) rather than a compiled model's name.
 pub fn model_path(name: &str) -> Option<std::path::PathBuf> {
-    name.ends_with(".toml").then(|| std::path::PathBuf::from(name))
+    name.ends_with(".toml")
+        .then(|| std::path::PathBuf::from(name))
 }
 
 fn tau(

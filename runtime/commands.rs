@@ -10,9 +10,9 @@ use nalgebra::DMatrix;
 use crate::cli::{AngleArg, Format, find_model};
 use crate::diagnose::Diagnosis;
 use crate::dynamics::Dynamics;
+use crate::dynamics::model_torques;
 use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed};
 use crate::mlp::{Dataset, Mlp};
-use crate::dynamics::model_torques;
 use crate::study::{self, StudyConfig, mse_per_joint};
 use crate::trajectory::{
     ReadOptions, read_csv, read_states_csv, write_csv, write_torques, write_torques_csv,
@@ -392,15 +392,19 @@ pub struct EvaluateArgs {
 pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     let model = find_model(&args.model)?;
     let network = args.nn.as_ref().map(Mlp::load).transpose()?;
-    let (trajectories, pipeline) = load(&args.data, Some(model.dof()), &args.input, &args.filter)?;
+    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let pipeline = args.filter.resolve(&recordings)?;
     let mut predicted = Vec::new();
     let mut measured = Vec::new();
-    for traj in &trajectories {
-        predicted.push(match &network {
-            Some(n) => n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?,
-            None => model_torques(model, traj)?,
-        });
-        measured.push(traj.tau().clone());
+    for (raw, path) in recordings.iter().zip(&args.data) {
+        let (m, p) = pipeline
+            .compare(raw, |traj| match &network {
+                Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
+                None => model_torques(model, traj),
+            })
+            .with_context(|| path.display().to_string())?;
+        predicted.push(p);
+        measured.push(m);
     }
     let (p, m) = (study::stack(predicted), study::stack(measured));
     let mse = mse_per_joint(&p, &m);
@@ -544,7 +548,11 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         .map(|b| b.link.clone())
         .unwrap_or_default();
     let backup = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
-    let data: Vec<String> = args.data.iter().map(|p| shell_word(&p.display().to_string())).collect();
+    let data: Vec<String> = args
+        .data
+        .iter()
+        .map(|p| shell_word(&p.display().to_string()))
+        .collect();
     let options = args.filter.command_line(args.input.angles);
     eprintln!(
         "updated {} (backup {}); the gap with the effects, no rebuild needed:\n  \
@@ -554,7 +562,8 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         backup.display(),
         shell_word(&toml.display().to_string()),
         data.join(" "),
-        toml.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned()),
+        toml.file_stem()
+            .map_or(String::new(), |s| s.to_string_lossy().into_owned()),
     );
     Ok(())
 }

@@ -189,9 +189,9 @@ pub fn model_torques(
     model: &dyn Dynamics,
     traj: &crate::trajectory::Trajectory,
 ) -> anyhow::Result<DMatrix<f64>> {
-    let qdd = traj
-        .qdd()
-        .ok_or_else(|| anyhow::anyhow!("the trajectory has no accelerations; preprocess it first"))?;
+    let qdd = traj.qdd().ok_or_else(|| {
+        anyhow::anyhow!("the trajectory has no accelerations; preprocess it first")
+    })?;
     let mut tau = DMatrix::zeros(traj.len(), model.dof());
     for r in 0..traj.len() {
         let row = |m: &DMatrix<f64>| m.row(r).iter().copied().collect::<Vec<f64>>();

@@ -7,8 +7,8 @@
 
 pub mod cli;
 pub mod commands;
-pub mod diagnose;
 pub mod described;
+pub mod diagnose;
 pub mod dynamics;
 pub mod import_log;
 pub mod import_urdf;

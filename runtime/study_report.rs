@@ -7,10 +7,10 @@ use anyhow::{Context, Result};
 use nalgebra::DMatrix;
 
 use crate::dynamics::Dynamics;
+use crate::dynamics::model_torques;
 use crate::mlp::{Dataset, Mlp};
 use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot, line_plot};
 use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv, write_markdown};
-use crate::dynamics::model_torques;
 use crate::study::{StudyResult, slug};
 use crate::trajectory::Trajectory;
 

@@ -326,6 +326,15 @@ mod tests {
     fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
         Diagnosis {
             model: "m".into(),
+            preprocessing: crate::preprocess::Pipeline::fixed(
+                crate::preprocess::Preset::Thesis,
+                crate::preprocess::Preprocess::thesis(),
+            ),
+            layout: crate::diagnose::Layout {
+                segments: 2,
+                segment_seconds: 1.0,
+                trimmed_samples: 0,
+            },
             samples: 0,
             residual_rms: vec![],
             residual_share: vec![],
@@ -333,6 +342,7 @@ mod tests {
             mse_before: vec![],
             mse_after: vec![],
             effects,
+            unexplained: vec![],
             notes: vec![],
             residuals: Default::default(),
         }

@@ -86,7 +86,21 @@ struct Rows {
 }
 
 impl Rows {
-    /// The fitted columns (parallel filtering).
+    /// Everything the torque filter applies to: residual, measured torque
+    /// and every column.
+    fn filtered_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
+        [
+            &mut self.residual,
+            &mut self.measured,
+            &mut self.coulomb_applied,
+        ]
+        .into_iter()
+        .chain(self.own.iter_mut())
+        .chain(self.inertial.iter_mut())
+        .chain(self.generic.iter_mut())
+    }
+
+    /// The fitted columns.
     fn fitted_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
         self.own
             .iter_mut()
@@ -152,35 +166,37 @@ pub(super) fn stack(
             );
         }
         let settings = pipeline.for_recording(raw);
-        let (traj, decimate) = match settings.filter {
-            Filter::Butterworth { .. } => (settings.filter_at_full_rate(raw)?, settings.downsample),
-            _ => (settings.apply(raw)?, 1),
-        };
-        let mut rows = rows(model, &traj)?;
-        if settings.filter_torque {
-            let dt = step(&traj);
-            for column in rows.fitted_mut() {
-                smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
+        let (rows, samples, dt) = match settings.filter {
+            Filter::Butterworth { .. } => {
+                // Parallel filtering: the whole equation tau = Y theta passes
+                // the torque filter, so every column is compared exactly.
+                let traj = settings.states_at_full_rate(raw)?;
+                let dt = step(&traj);
+                let mut rows = rows(model, &traj)?;
+                for column in rows.filtered_mut() {
+                    smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
+                }
+                (rows, Pipeline::kept_samples(&settings, traj.len(), dt), dt)
             }
-        }
-        let trim = match settings.filter {
-            Filter::Butterworth { cutoff_hz } if traj.len() > 8 * (1.0 / (cutoff_hz * step(&traj))) as usize => {
-                (1.0 / (cutoff_hz * step(&traj))).ceil() as usize
+            _ => {
+                let traj = settings.apply(raw)?;
+                let dt = step(&traj);
+                (rows(model, &traj)?, (0..traj.len()).collect(), dt)
             }
-            _ => 0,
         };
-        trimmed = trim;
-        let samples: Vec<usize> = (trim..traj.len() - trim).step_by(decimate).collect();
-        durations.push(samples.len() as f64 * step(&traj) * decimate as f64);
+        trimmed = samples.first().copied().unwrap_or(0);
+        durations.push(samples.len() as f64 * dt * settings.downsample.max(1) as f64);
         kept.push(rows.keep(n, &samples));
     }
     let counts = match segments {
         Some(k) => vec![k; kept.len()],
         None => segment_counts(&durations),
     };
-    let mut all = Rows::default();
-    all.inertial = vec![Vec::new(); 10 * n];
-    all.generic = vec![Vec::new(); GENERIC_FEATURES.len()];
+    let mut all = Rows {
+        inertial: vec![Vec::new(); 10 * n],
+        generic: vec![Vec::new(); GENERIC_FEATURES.len()],
+        ..Rows::default()
+    };
     let mut group = Vec::new();
     for (rows, &count) in kept.iter().zip(&counts) {
         let samples = rows.residual.len() / n;
@@ -270,7 +286,10 @@ fn rows(model: &dyn Dynamics, traj: &Trajectory) -> anyhow::Result<Rows> {
             rows.qdd.push(qdd[i]);
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
-            for (k, v) in [qd[i], moving_sign(qd[i]), qdd[i], 1.0].into_iter().enumerate() {
+            for (k, v) in [qd[i], moving_sign(qd[i]), qdd[i], 1.0]
+                .into_iter()
+                .enumerate()
+            {
                 rows.own[k].push(v);
             }
             for (k, column) in rows.inertial.iter_mut().enumerate() {

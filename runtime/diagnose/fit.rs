@@ -474,7 +474,11 @@ pub(super) fn student_t975(dof: usize) -> f64 {
 }
 
 /// Residual SSE per joint over all samples with `columns` fitted as `coefficients`.
-pub(super) fn sse_per_joint(m: &Moments, columns: &[usize], coefficients: &DVector<f64>) -> Vec<f64> {
+pub(super) fn sse_per_joint(
+    m: &Moments,
+    columns: &[usize],
+    coefficients: &DVector<f64>,
+) -> Vec<f64> {
     let joints = m.xx.first().map_or(0, Vec::len);
     (0..joints)
         .map(|j| {

@@ -82,13 +82,13 @@ use serde::Serialize;
 use crate::dynamics::Dynamics;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
-pub use data::{Layout, segment_counts};
-pub use unexplained::{RegimeShare, Unexplained};
 use candidate::Shape;
+pub use data::{Layout, segment_counts};
 use data::{reject_duplicates, stack};
 use fit::{Moments, cv_mse_per_joint};
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
 use select::{mass_identifiable, select};
+pub use unexplained::{RegimeShare, Unexplained};
 
 /// The kinds of effect the diagnosis can name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -4,9 +4,7 @@
 use nalgebra::Vector3;
 
 use super::candidate::{Candidate, Shape, columns_of, width};
-use super::fit::{
-    Fit, Moments, cv_mse_per_joint, fit, fit_robust, identifiability, pseudo_solve,
-};
+use super::fit::{Fit, Moments, cv_mse_per_joint, fit, fit_robust, identifiability, pseudo_solve};
 use super::{COLLINEAR, Kind, Settings};
 
 /// Whether the data identify the mass of an `inertial_error` candidate's
@@ -21,7 +19,12 @@ use super::{COLLINEAR, Kind, Settings};
 /// all joints that move it has a zero mass column: its mass enters the
 /// torques only through the parallel-axis terms of an assumed inertia about
 /// the COM, which the data do not check.
-pub(super) fn mass_identifiable(m: &Moments, candidates: &[Candidate], c: usize, lever: f64) -> bool {
+pub(super) fn mass_identifiable(
+    m: &Moments,
+    candidates: &[Candidate],
+    c: usize,
+    lever: f64,
+) -> bool {
     let candidate = &candidates[c];
     if candidate.kind != Kind::InertialError
         || !matches!(candidate.shape, Shape::Body { base_mass, .. } if base_mass > 0.0)
@@ -202,7 +205,12 @@ pub(super) fn label(candidate: &Candidate) -> String {
 
 /// Whether fitted `values` can be the candidate's physical effect; if not,
 /// the note that says what the data show instead.
-pub(super) fn physical(candidate: &Candidate, values: &[f64], gain: f64, reach: f64) -> Result<(), String> {
+pub(super) fn physical(
+    candidate: &Candidate,
+    values: &[f64],
+    gain: f64,
+    reach: f64,
+) -> Result<(), String> {
     let at = match (&candidate.joint, &candidate.link) {
         (Some(j), _) => format!("joint {}", j + 1),
         (None, Some((k, name))) if candidate.kind == Kind::InertialError => {

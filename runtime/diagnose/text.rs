@@ -74,7 +74,11 @@ fn effect_line(e: &Effect) -> String {
         .filter(|(_, v)| !v.is_null() && !is_null_array(v))
         .map(|(name, value)| {
             let interval = e.ci95.get(name).map_or(String::new(), interval_text);
-            format!("{name} {}{}{interval}", value_text(value), unit(e.kind, name))
+            format!(
+                "{name} {}{}{interval}",
+                value_text(value),
+                unit(e.kind, name)
+            )
         })
         .collect();
     let whose = match e.joint {
@@ -98,7 +102,10 @@ fn value_text(v: &serde_json::Value) -> String {
     match v {
         serde_json::Value::Number(n) => n.as_f64().map_or(n.to_string(), sig),
         serde_json::Value::Array(a) => {
-            format!("[{}]", a.iter().map(value_text).collect::<Vec<_>>().join(", "))
+            format!(
+                "[{}]",
+                a.iter().map(value_text).collect::<Vec<_>>().join(", ")
+            )
         }
         other => other.to_string(),
     }
@@ -111,7 +118,11 @@ fn interval_text(v: &serde_json::Value) -> String {
     };
     let pair = |p: &serde_json::Value| -> Option<String> {
         let p = p.as_array()?;
-        Some(format!("{} .. {}", sig(p.first()?.as_f64()?), sig(p.get(1)?.as_f64()?)))
+        Some(format!(
+            "{} .. {}",
+            sig(p.first()?.as_f64()?),
+            sig(p.get(1)?.as_f64()?)
+        ))
     };
     if items.first().is_some_and(|x| x.is_number()) {
         return pair(v).map_or(String::new(), |p| format!(" (95% CI {p})"));

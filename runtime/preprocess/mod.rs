@@ -24,10 +24,10 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 pub use butterworth::ZeroPhaseLowPass;
-pub use pipeline::{Pipeline, Preset};
 pub use filters::{
     Centering, PreprocessError, central_difference, downsample, moving_average, savitzky_golay,
 };
+pub use pipeline::{Pipeline, Preset};
 
 use crate::trajectory::Trajectory;
 
@@ -164,8 +164,22 @@ impl Preprocess {
         Ok(Trajectory::new(traj.t().to_vec(), q, qd, Some(qdd), tau)?)
     }
 
+    /// [`Preprocess::filter_at_full_rate`] with the torque left as measured
+    /// (for a comparison that filters both torques alike afterwards).
+    pub fn states_at_full_rate(&self, traj: &Trajectory) -> Result<Trajectory, PreprocessError> {
+        Self {
+            filter_torque: false,
+            ..self.clone()
+        }
+        .filter_at_full_rate(traj)
+    }
+
     /// Every column of `m` through [`Preprocess::smooth`].
-    pub fn smooth_columns(&self, m: &DMatrix<f64>, dt: f64) -> Result<DMatrix<f64>, PreprocessError> {
+    pub fn smooth_columns(
+        &self,
+        m: &DMatrix<f64>,
+        dt: f64,
+    ) -> Result<DMatrix<f64>, PreprocessError> {
         let mut out = m.clone();
         for j in 0..m.ncols() {
             let raw: Vec<f64> = m.column(j).iter().copied().collect();

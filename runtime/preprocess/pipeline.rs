@@ -2,6 +2,7 @@
 //! against the data, the same for every command that reads measurements
 //! (`evaluate`, `diagnose`, `study`, `train`, `synth`, `preprocess`).
 
+use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::auto::{self, Choice, sample_rate};
@@ -89,6 +90,53 @@ impl Pipeline {
     /// Preprocesses one recording.
     pub fn apply(&self, traj: &Trajectory) -> Result<Trajectory, PreprocessError> {
         self.for_recording(traj).apply(traj)
+    }
+
+    /// Measured and predicted torques compared as the diagnosis compares
+    /// them. For the Butterworth pipeline: `predict` runs on the filtered
+    /// states at the full rate; the measured and the predicted torque both
+    /// pass the torque filter (so a linear effect is compared exactly, and a
+    /// discontinuous one such as Coulomb friction is smoothed alike on both
+    /// sides), the ends are trimmed against filter transients
+    /// ([`Pipeline::kept_samples`]), then decimated. Otherwise the
+    /// preprocessed trajectory's torque against `predict` on it.
+    pub fn compare(
+        &self,
+        raw: &Trajectory,
+        predict: impl Fn(&Trajectory) -> anyhow::Result<DMatrix<f64>>,
+    ) -> anyhow::Result<(DMatrix<f64>, DMatrix<f64>)> {
+        let settings = self.for_recording(raw);
+        if !matches!(settings.filter, Filter::Butterworth { .. }) {
+            let traj = settings.apply(raw)?;
+            let predicted = predict(&traj)?;
+            return Ok((traj.tau().clone(), predicted));
+        }
+        let states = settings.states_at_full_rate(raw)?;
+        let dt = super::step(&states);
+        let predicted = settings.smooth_columns(&predict(&states)?, dt)?;
+        let measured = settings.smooth_columns(raw.tau(), dt)?;
+        let keep = Self::kept_samples(&settings, raw.len(), dt);
+        Ok((
+            measured.select_rows(keep.iter()),
+            predicted.select_rows(keep.iter()),
+        ))
+    }
+
+    /// The samples a Butterworth pipeline keeps of a recording of `len`
+    /// samples: one cut-off period trimmed at each end (filter transients,
+    /// when the recording is longer than eight periods), then every
+    /// `downsample`-th.
+    pub fn kept_samples(settings: &Preprocess, len: usize, dt: f64) -> Vec<usize> {
+        let trim = match settings.filter {
+            Filter::Butterworth { cutoff_hz } => {
+                let period = (1.0 / (cutoff_hz * dt)).ceil() as usize;
+                if len > 8 * period { period } else { 0 }
+            }
+            _ => 0,
+        };
+        (trim..len - trim)
+            .step_by(settings.downsample.max(1))
+            .collect()
     }
 
     /// One line for reports.
