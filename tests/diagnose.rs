@@ -576,3 +576,52 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
         );
     }
 }
+
+/// One recording, no flags, through the command line: the plant's friction
+/// is named, the choice of preprocessing is reported, and a description
+/// file given as `--model` (numeric dynamics, no rebuild) scores exactly as
+/// its compiled twin.
+#[test]
+fn one_recording_and_a_description_file_need_no_flags() {
+    let dir = Dir::new();
+    let out = dir.path().join("rec");
+    let run = crate::util::sdnn(&["simulate", "--count", "1", "--out", out.to_str().unwrap()]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let file = out.join("trajectory_01.csv");
+    let data = file.to_str().unwrap();
+    let d = sdnn_json(&["diagnose", "--data", data, "--format", "json"]);
+    assert_eq!(d["preprocessing"]["preset"], "auto", "{d}");
+    let cutoff = d["preprocessing"]["choice"]["cutoff_hz"].as_f64().unwrap();
+    assert!((1.0..=200.0).contains(&cutoff), "{d}");
+    assert!(d["layout"]["segments"].as_u64().unwrap() >= 5, "{d}");
+    let named: Vec<(&str, u64)> = d["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|e| Some((e["kind"].as_str()?, e["joint"].as_u64()?)))
+        .collect();
+    for j in 1..=3 {
+        assert!(named.contains(&("coulomb_friction", j)), "{d}");
+    }
+    let plant = root().join("models/kinova_gen3_lite_3dof_plant.toml");
+    let evaluate = |model: &str| {
+        sdnn_json(&[
+            "evaluate", "--model", model, "--data", data, "--format", "json",
+        ])
+    };
+    let (file_model, compiled) = (
+        evaluate(plant.to_str().unwrap()),
+        evaluate("kinova_gen3_lite_3dof_plant"),
+    );
+    for j in 0..3 {
+        assert_close(
+            file_model["mse"][j].as_f64().unwrap(),
+            compiled["mse"][j].as_f64().unwrap(),
+            "MSE of the description file against the compiled model",
+        );
+    }
+}
