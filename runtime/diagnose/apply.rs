@@ -343,6 +343,7 @@ mod tests {
             mse_after: vec![],
             effects,
             unexplained: vec![],
+            identifiability: Default::default(),
             notes: vec![],
             residuals: Default::default(),
         }

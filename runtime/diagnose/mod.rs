@@ -71,6 +71,7 @@ pub mod apply;
 mod candidate;
 pub mod data;
 mod fit;
+mod identify;
 pub mod plots;
 mod report;
 mod select;
@@ -88,6 +89,7 @@ use data::{reject_duplicates, stack};
 use fit::{Moments, cv_mse_per_joint};
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
 use select::{mass_identifiable, select};
+pub use identify::{Confounded, Identifiability};
 pub use unexplained::{RegimeShare, Unexplained};
 
 /// The kinds of effect the diagnosis can name.
@@ -155,6 +157,8 @@ pub struct Diagnosis {
     pub effects: Vec<Effect>,
     /// Structure left in the residual that no candidate explains.
     pub unexplained: Vec<Unexplained>,
+    /// How well these data separate the named effects' parameters.
+    pub identifiability: Identifiability,
     /// Structure the data supports but no physical effect explains, e.g. a
     /// negative armature (the model's inertia about a joint is too high).
     pub notes: Vec<String>,
@@ -294,6 +298,7 @@ pub fn diagnose(
         mse_after,
         effects,
         unexplained: unexplained::unexplained(&data, &residuals.after),
+        identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         residuals,
     })

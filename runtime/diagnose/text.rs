@@ -52,6 +52,20 @@ impl Diagnosis {
         for e in &self.effects {
             let _ = writeln!(out, "  {}", effect_line(e));
         }
+        if let Some(condition) = self.identifiability.condition_number {
+            let _ = writeln!(
+                out,
+                "identifiability: condition number {} of the named parameters",
+                sig(condition)
+            );
+        }
+        for c in &self.identifiability.confounded {
+            let _ = writeln!(
+                out,
+                "  barely told apart by these data: {} ~ {} (correlation {:+.2})",
+                c.first, c.second, c.correlation
+            );
+        }
         for u in &self.unexplained {
             let _ = writeln!(out, "unexplained: {}", u.text);
         }

@@ -1,0 +1,93 @@
+//! Identifiability of the named effects' parameters in these data: the
+//! condition number of their scaled information matrix and the pairs of
+//! parameters the data can barely tell apart.
+
+use nalgebra::DMatrix;
+use serde::Serialize;
+
+use super::candidate::{Candidate, width};
+use super::fit::{Moments, fit, pseudo_solve};
+use super::select::label;
+
+/// |correlation| of two parameter estimates above which they are reported
+/// as confounded.
+pub const CONFOUNDED: f64 = 0.9;
+
+/// What the JSON report says about identifiability.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Identifiability {
+    /// Condition number of the named parameters' information matrix scaled
+    /// to unit diagonal (1: orthogonal effects; above about 1e3 the data
+    /// barely separate some combination); `None` when nothing is named.
+    pub condition_number: Option<f64>,
+    /// Pairs of named parameters whose estimates correlate beyond
+    /// [`CONFOUNDED`]: the data trade one for the other.
+    pub confounded: Vec<Confounded>,
+}
+
+/// Two parameters the data can barely tell apart.
+#[derive(Debug, Clone, Serialize)]
+pub struct Confounded {
+    pub first: String,
+    pub second: String,
+    pub correlation: f64,
+}
+
+pub(super) fn identifiability(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> Identifiability {
+    let Some(fit) = (!selected.is_empty())
+        .then(|| fit(m, candidates, selected, |_| true))
+        .flatten()
+    else {
+        return Identifiability::default();
+    };
+    let names: Vec<String> = selected
+        .iter()
+        .flat_map(|&c| {
+            let candidate = &candidates[c];
+            let names = parameter_names(candidate);
+            (0..width(candidate)).map(move |k| format!("{}: {}", label(candidate), names[k]))
+        })
+        .collect();
+    let info = &fit.information;
+    let k = info.nrows();
+    let d: Vec<f64> = (0..k).map(|i| info[(i, i)].max(f64::MIN_POSITIVE).sqrt()).collect();
+    let scaled = DMatrix::from_fn(k, k, |i, j| info[(i, j)] / (d[i] * d[j]));
+    let eigen = scaled.symmetric_eigenvalues();
+    let (low, high) = (eigen.min().max(0.0), eigen.max());
+    let covariance = DMatrix::from_columns(
+        &(0..k)
+            .map(|c| pseudo_solve(&scaled, &nalgebra::DVector::from_fn(k, |r, _| f64::from(r == c))))
+            .collect::<Vec<_>>(),
+    );
+    let mut confounded = Vec::new();
+    for i in 0..k {
+        for j in i + 1..k {
+            let denominator = (covariance[(i, i)] * covariance[(j, j)]).sqrt();
+            let correlation = covariance[(i, j)] / denominator;
+            if denominator > 0.0 && correlation.abs() > CONFOUNDED {
+                confounded.push(Confounded {
+                    first: names[i].clone(),
+                    second: names[j].clone(),
+                    correlation,
+                });
+            }
+        }
+    }
+    Identifiability {
+        condition_number: Some(if low > 0.0 { high / low } else { f64::INFINITY }),
+        confounded,
+    }
+}
+
+/// The names of a candidate's fitted parameters (a body's mass and COM, or
+/// its first moment when the mass is held).
+fn parameter_names(candidate: &Candidate) -> Vec<&'static str> {
+    match width(candidate) {
+        3 if candidate.joint.is_none() => vec!["mx", "my", "mz"],
+        _ => candidate.names.clone(),
+    }
+}
