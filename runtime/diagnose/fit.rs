@@ -394,23 +394,91 @@ pub(super) fn fit_all(
         return None;
     }
     let fit = fit(m, candidates, selected, |_| true)?;
+    let covariance = covariance(m, candidates, selected, &fit);
+    let se = DVector::from_fn(fit.theta.len(), |i, _| covariance[(i, i)].max(0.0).sqrt());
+    Some((fit, se))
+}
+
+/// Least-squares covariance of the fitted parameters (sigma^2 from the
+/// residual, the information's pseudo-inverse).
+fn covariance(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    fit: &Fit,
+) -> DMatrix<f64> {
     let columns = columns_of(candidates, selected);
     let sse: f64 = sse_per_joint(m, &columns, &fit.coefficients).iter().sum();
     let rows: usize = m.rows.iter().flatten().sum();
     let sigma2 = sse.max(0.0) / (rows.saturating_sub(fit.theta.len())).max(1) as f64;
     let k = fit.theta.len();
-    let covariance = DMatrix::from_columns(
+    sigma2
+        * DMatrix::from_columns(
+            &(0..k)
+                .map(|c| {
+                    pseudo_solve(
+                        &fit.information,
+                        &DVector::from_fn(k, |r, _| f64::from(r == c)),
+                    )
+                })
+                .collect::<Vec<_>>(),
+        )
+}
+
+/// A quantity `f` of the parameters (e.g. a body's first moment m*c) at the
+/// full-data fit, with its standard errors: the larger of the least-squares
+/// one (delta method, central differences) and the jackknife one, as for
+/// the parameters themselves.
+pub(super) fn robust_quantity(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    fit: &Fit,
+    f: impl Fn(&DVector<f64>) -> DVector<f64>,
+) -> (DVector<f64>, DVector<f64>) {
+    let value = f(&fit.theta);
+    let k = fit.theta.len();
+    let jacobian = DMatrix::from_columns(
         &(0..k)
-            .map(|c| {
-                pseudo_solve(
-                    &fit.information,
-                    &DVector::from_fn(k, |r, _| f64::from(r == c)),
-                )
+            .map(|i| {
+                let h = 1e-6 * fit.theta[i].abs().max(1e-3);
+                let (mut up, mut down) = (fit.theta.clone(), fit.theta.clone());
+                up[i] += h;
+                down[i] -= h;
+                (f(&up) - f(&down)) / (2.0 * h)
             })
             .collect::<Vec<_>>(),
     );
-    let se = DVector::from_fn(k, |i, _| (sigma2 * covariance[(i, i)]).max(0.0).sqrt());
-    Some((fit, se))
+    let covariance = &jacobian * covariance(m, candidates, selected, fit) * jacobian.transpose();
+    let mut se = DVector::from_fn(value.len(), |i, _| covariance[(i, i)].max(0.0).sqrt());
+    let groups = m.xx.len();
+    let folds: Option<Vec<DVector<f64>>> = (groups >= 3)
+        .then(|| {
+            (0..groups)
+                .map(|g| fit_on(m, candidates, selected, g).map(|t| f(&t)))
+                .collect()
+        })
+        .flatten();
+    if let Some(folds) = folds {
+        let g = groups as f64;
+        let mean = folds.iter().fold(DVector::zeros(value.len()), |a, v| a + v) / g;
+        let t = student_t975(groups - 1);
+        for i in 0..value.len() {
+            let spread: f64 = folds.iter().map(|v| (v[i] - mean[i]).powi(2)).sum();
+            se[i] = se[i].max(t * ((g - 1.0) / g * spread).sqrt() / 1.96);
+        }
+    }
+    (value, se)
+}
+
+/// The parameters fitted without group `g`.
+fn fit_on(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    g: usize,
+) -> Option<DVector<f64>> {
+    fit(m, candidates, selected, |h| h != g).map(|f| f.theta)
 }
 
 /// [`fit_all`] with each standard error the larger of the least-squares and

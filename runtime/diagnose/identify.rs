@@ -54,13 +54,20 @@ pub(super) fn identifiability(
         .collect();
     let info = &fit.information;
     let k = info.nrows();
-    let d: Vec<f64> = (0..k).map(|i| info[(i, i)].max(f64::MIN_POSITIVE).sqrt()).collect();
+    let d: Vec<f64> = (0..k)
+        .map(|i| info[(i, i)].max(f64::MIN_POSITIVE).sqrt())
+        .collect();
     let scaled = DMatrix::from_fn(k, k, |i, j| info[(i, j)] / (d[i] * d[j]));
     let eigen = scaled.symmetric_eigenvalues();
     let (low, high) = (eigen.min().max(0.0), eigen.max());
     let covariance = DMatrix::from_columns(
         &(0..k)
-            .map(|c| pseudo_solve(&scaled, &nalgebra::DVector::from_fn(k, |r, _| f64::from(r == c))))
+            .map(|c| {
+                pseudo_solve(
+                    &scaled,
+                    &nalgebra::DVector::from_fn(k, |r, _| f64::from(r == c)),
+                )
+            })
             .collect::<Vec<_>>(),
     );
     let mut confounded = Vec::new();

@@ -87,9 +87,9 @@ use candidate::Shape;
 pub use data::{Layout, segment_counts};
 use data::{reject_duplicates, stack};
 use fit::{Moments, cv_mse_per_joint};
-use report::{describe, per_joint, regimes, residual_samples, residual_share};
-use select::{mass_identifiable, select};
 pub use identify::{Confounded, Identifiability};
+use report::{describe, per_joint, regimes, residual_samples, residual_share};
+use select::{body_identifiable, mass_identifiable, select};
 pub use unexplained::{RegimeShare, Unexplained};
 
 /// The kinds of effect the diagnosis can name.
@@ -254,9 +254,13 @@ pub fn diagnose(
         );
     }
     let moments = Moments::new(&data, &candidates);
-    let massless: Vec<usize> = (0..candidates.len())
+    // A link whose origin does not accelerate has no mass column of its
+    // own: its mass acts only through its second moments, which identify it
+    // if the inertia about the COM is as modelled (noted); where they do not
+    // either, only the first moment is fitted.
+    let (second_moments, massless): (Vec<usize>, Vec<usize>) = (0..candidates.len())
         .filter(|&c| !mass_identifiable(&moments, &candidates, c, size))
-        .collect();
+        .partition(|&c| body_identifiable(&moments, &candidates, c));
     for c in massless {
         if let Shape::Body {
             offset,
@@ -282,6 +286,16 @@ pub fn diagnose(
         settings.com_resolution * size,
         &mut notes,
     );
+    for &c in selected.iter().filter(|c| second_moments.contains(c)) {
+        notes.push(format!(
+            "{}: the link's origin does not accelerate in these motions (it lies on the axes of \
+             the joints that move it), so its mass acts only through its second moments: mass \
+             and COM are fitted with the link's inertia about its COM held as modelled; if that \
+             inertia is wrong too, so is the mass (the mass and COM estimates correlate strongly, \
+             see identifiability)",
+            select::label(&candidates[c])
+        ));
+    }
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     Ok(Diagnosis {
         model: model.name().to_string(),

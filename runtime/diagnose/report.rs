@@ -82,6 +82,10 @@ pub(super) fn describe(
     effects
 }
 
+/// A fitted mass whose 95% half-width exceeds this fraction of it gets a
+/// note that the data barely determine it.
+pub const MASS_RESOLUTION: f64 = 0.1;
+
 pub(super) fn effect(
     candidate: &Candidate,
     values: &[(f64, f64)],
@@ -100,6 +104,17 @@ pub(super) fn effect(
         let (m, dm) = values[0];
         parameters.insert("mass".into(), json!(m));
         ci95.insert("mass".into(), json!([m - dm, m + dm]));
+        if dm > MASS_RESOLUTION * m.abs() {
+            notes.push(format!(
+                "{}: the mass is poorly determined by these data (fit {m:.3} kg, 95% CI \
+                 {:.3} .. {:.3} kg, more than {:.0}% either way): treat it as unknown within that \
+                 interval",
+                label(candidate),
+                m - dm,
+                m + dm,
+                100.0 * MASS_RESOLUTION
+            ));
+        }
         let mut com = Vec::new();
         let mut interval = Vec::new();
         for (axis, &(c, dc)) in ["x", "y", "z"].iter().zip(&values[1..]) {
