@@ -332,10 +332,17 @@ fn mass_and_com_error_in_one_link() {
     assert_eq!(effect.kind, Kind::InertialError, "{text}");
     assert_eq!(effect.link.as_deref(), Some("link2"), "{text}");
     let mass = effect.parameters["mass"].as_f64().unwrap();
-    assert!((mass - m1).abs() <= 0.05 * m1, "mass {mass} vs {m1}: {text}");
+    assert!(
+        (mass - m1).abs() <= 0.05 * m1,
+        "mass {mass} vs {m1}: {text}"
+    );
     for (k, c) in com_of(effect).iter().enumerate() {
         let c = c.unwrap_or_else(|| panic!("com[{k}] null: {text}"));
-        assert!((c - c1[k]).abs() <= 0.005, "com[{k}] {c} vs {}: {text}", c1[k]);
+        assert!(
+            (c - c1[k]).abs() <= 0.005,
+            "com[{k}] {c} vs {}: {text}",
+            c1[k]
+        );
     }
     assert!(
         d.notes

@@ -341,6 +341,7 @@ mod tests {
             regimes: vec![],
             mse_before: vec![],
             mse_after: vec![],
+            mse_after_fitted: vec![],
             effects,
             unexplained: vec![],
             identifiability: Default::default(),

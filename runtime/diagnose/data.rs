@@ -6,7 +6,7 @@ use super::Kind;
 use super::candidate::{Candidate, Shape, point_mass};
 use crate::dynamics::{Dynamics, model_torques};
 use crate::oracle::coulomb_sign;
-use crate::preprocess::{Filter, Pipeline, step};
+use crate::preprocess::{Filter, Pipeline, Preprocess, step};
 use crate::trajectory::Trajectory;
 
 /// Stacked data: rows are (sample, joint) pairs, sample-major.
@@ -172,7 +172,8 @@ pub(super) fn stack(
                 // the torque filter, so every column is compared exactly.
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
-                let mut rows = rows(model, &traj)?;
+                let rest = rest_velocities(raw, &traj, &settings);
+                let mut rows = rows(model, &traj, &rest)?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -181,7 +182,8 @@ pub(super) fn stack(
             _ => {
                 let traj = settings.apply(raw)?;
                 let dt = step(&traj);
-                (rows(model, &traj)?, (0..traj.len()).collect(), dt)
+                let rest = vec![MOVING; n];
+                (rows(model, &traj, &rest)?, (0..traj.len()).collect(), dt)
             }
         };
         trimmed = samples.first().copied().unwrap_or(0);
@@ -261,7 +263,9 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
 }
 
 /// The model's residual and candidate columns at every sample of `traj`.
-fn rows(model: &dyn Dynamics, traj: &Trajectory) -> anyhow::Result<Rows> {
+/// `rest[j]`: joint j's speed below which it counts as at rest (see
+/// [`rest_velocities`]).
+fn rows(model: &dyn Dynamics, traj: &Trajectory, rest: &[f64]) -> anyhow::Result<Rows> {
     let n = model.dof();
     let predicted = model_torques(model, traj)?;
     let accel = traj
@@ -286,16 +290,14 @@ fn rows(model: &dyn Dynamics, traj: &Trajectory) -> anyhow::Result<Rows> {
             rows.qdd.push(qdd[i]);
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
-            for (k, v) in [qd[i], moving_sign(qd[i]), qdd[i], 1.0]
-                .into_iter()
-                .enumerate()
-            {
+            let sign = moving_sign(qd[i], rest[i]);
+            for (k, v) in [qd[i], sign, qdd[i], 1.0].into_iter().enumerate() {
                 rows.own[k].push(v);
             }
             for (k, column) in rows.inertial.iter_mut().enumerate() {
                 column.push(y[(i, k)]);
             }
-            let features = generic_features(q[i], qd[i], qdd[i], load[i], rate[(s, i)]);
+            let features = generic_features(q[i], qd[i], sign, qdd[i], load[i], rate[(s, i)]);
             for (column, v) in rows.generic.iter_mut().zip(features) {
                 column.push(v);
             }
@@ -321,8 +323,7 @@ pub const GENERIC_FEATURES: [(&str, &str); 12] = [
     ("torque rate", "d/dt model torque"),
 ];
 
-fn generic_features(q: f64, qd: f64, qdd: f64, load: f64, rate: f64) -> [f64; 12] {
-    let sign = moving_sign(qd);
+fn generic_features(q: f64, qd: f64, sign: f64, qdd: f64, load: f64, rate: f64) -> [f64; 12] {
     [
         qd,
         qd * qd.abs(),
@@ -441,13 +442,35 @@ fn candidates(
     list
 }
 
-/// Joints slower than this (rad/s) are taken as at rest for the Coulomb fit:
-/// their friction is static, anywhere between the Coulomb levels, and a
-/// measured velocity that small has an unreliable sign (noise), which would
-/// bias the level low. Held-out errors are still scored with the generated
-/// model's plain sign(qd) (`Candidate::applied`).
+/// With the thesis preprocessing, joints slower than this (rad/s) are taken
+/// as at rest for the Coulomb fit: their friction is static, anywhere
+/// between the Coulomb levels, and a measured velocity that small has an
+/// unreliable sign (noise), which would bias the level low. Held-out errors
+/// are still scored with the generated model's plain sign(qd)
+/// (`Candidate::applied`).
 pub const MOVING: f64 = 0.02;
 
-pub(super) fn moving_sign(qd: f64) -> f64 {
-    if qd.abs() > MOVING { qd.signum() } else { 0.0 }
+/// The at-rest speed of each joint for the Butterworth pipeline: three
+/// standard deviations of the velocity noise left after filtering, at least
+/// [`MOVING`] (slower joints stick or creep, where dry friction is not at
+/// its sliding level). The
+/// noise's deviation is that of the raw minus the filtered velocity (white
+/// noise above the cut-off), scaled by the share of the band the filter
+/// passes, sqrt(2 fc / fs).
+fn rest_velocities(raw: &Trajectory, filtered: &Trajectory, settings: &Preprocess) -> Vec<f64> {
+    let Filter::Butterworth { cutoff_hz } = settings.filter else {
+        return vec![MOVING; raw.dof()];
+    };
+    let passed = (2.0 * cutoff_hz * step(raw)).min(1.0).sqrt();
+    (0..raw.dof())
+        .map(|j| {
+            let difference = raw.qd().column(j) - filtered.qd().column(j);
+            let sigma = (difference.norm_squared() / raw.len().max(1) as f64).sqrt();
+            (3.0 * sigma * passed).max(MOVING)
+        })
+        .collect()
+}
+
+pub(super) fn moving_sign(qd: f64, rest: f64) -> f64 {
+    if qd.abs() > rest { qd.signum() } else { 0.0 }
 }

@@ -154,6 +154,11 @@ pub struct Diagnosis {
     /// Held-out (leave-one-trajectory-out) torque MSE per joint, N m^2.
     pub mse_before: Vec<f64>,
     pub mse_after: Vec<f64>,
+    /// The same with Coulomb friction zero while a joint is at rest (its
+    /// speed below the velocity noise), as fitted: where a joint sticks, the
+    /// friction is static and the applied model's sign(qd) follows noise, so
+    /// this is what the effects explain physically.
+    pub mse_after_fitted: Vec<f64>,
     pub effects: Vec<Effect>,
     /// Structure left in the residual that no candidate explains.
     pub unexplained: Vec<Unexplained>,
@@ -279,6 +284,13 @@ pub fn diagnose(
     let (selected, mut notes) = select(&moments, data.dof, &candidates, settings);
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
+    let mse_after_fitted = fit::cv_mse(
+        &moments,
+        data.dof,
+        &candidates,
+        &selected,
+        fit::Scoring::Fitted,
+    );
     let effects = describe(
         &moments,
         &candidates,
@@ -310,6 +322,7 @@ pub fn diagnose(
         regimes: regimes(&data, &candidates),
         mse_before,
         mse_after,
+        mse_after_fitted,
         effects,
         unexplained: unexplained::unexplained(&data, &residuals.after),
         identifiability: identify::identifiability(&moments, &candidates, &selected),

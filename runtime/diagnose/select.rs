@@ -5,7 +5,7 @@ use nalgebra::{DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, columns_of, width};
 use super::fit::{
-    Fit, Moments, cv_mse_per_joint, fit, fit_robust, identifiability, pseudo_solve, robust_quantity,
+    Fit, Moments, Scoring, cv_mse, fit, fit_robust, identifiability, pseudo_solve, robust_quantity,
 };
 use super::{COLLINEAR, Kind, Settings};
 
@@ -89,7 +89,7 @@ pub(super) fn select(
             })
         })
         .collect();
-    let mut current = cv_mse_per_joint(m, dof, candidates, &[]);
+    let mut current = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
     loop {
         let best = (0..candidates.len())
             .filter(|c| {
@@ -98,7 +98,7 @@ pub(super) fn select(
             .map(|c| {
                 let mut trial = selected.clone();
                 trial.push(c);
-                let mse = cv_mse_per_joint(m, dof, candidates, &trial);
+                let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
                 (c, relative_gain(&current, &mse), mse)
             })
             .filter(|(_, gain, _)| gain.is_finite())
@@ -155,7 +155,10 @@ pub(super) fn select(
     for &c in &unidentifiable {
         let mut trial = selected.clone();
         trial.push(c);
-        let gain = relative_gain(&current, &cv_mse_per_joint(m, dof, candidates, &trial));
+        let gain = relative_gain(
+            &current,
+            &cv_mse(m, dof, candidates, &trial, Scoring::Fitted),
+        );
         if gain >= settings.min_gain {
             notes.push(format!(
                 "{}: would cut a joint's held-out MSE by {:.0}%, but these data cannot identify \

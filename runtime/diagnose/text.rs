@@ -32,6 +32,16 @@ impl Diagnosis {
                 sig(after),
                 percent_change(before, after)
             );
+            let fitted = self.mse_after_fitted[j];
+            if fitted < 0.8 * after {
+                let _ = writeln!(
+                    out,
+                    "  {} N m^2 ({}) with Coulomb friction zero while the joint is at rest: it \
+                     sticks, and there the model's sign(qd) term follows velocity noise",
+                    sig(fitted),
+                    percent_change(before, fitted)
+                );
+            }
             let r = &self.regimes[j];
             let _ = writeln!(
                 out,
