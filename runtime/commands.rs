@@ -15,7 +15,7 @@ use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed};
 use crate::mlp::{Dataset, Mlp};
 use crate::study::{self, StudyConfig, mse_per_joint};
 use crate::trajectory::{
-    ReadOptions, read_csv, read_states_csv, write_csv, write_torques, write_torques_csv,
+    ReadOptions, read_states_csv, write_csv, write_torques, write_torques_csv,
 };
 
 /// The default virtual robot: the thesis model plus joint friction and armature.
@@ -148,11 +148,7 @@ pub struct StudyArgs {
 /// The SDNN study on measured recordings (see `study::run_on_measurements`).
 pub fn study_command(args: &StudyArgs) -> Result<()> {
     let nominal = find_model(&args.model)?;
-    let recordings = args
-        .data
-        .iter()
-        .map(|path| Ok(read_csv(path, &args.input.options(Some(nominal.dof()), 2))?))
-        .collect::<Result<Vec<_>>>()?;
+    let recordings = args.input.read_all(&args.data, Some(nominal.dof()))?;
     let config = StudyConfig {
         preprocess: args.filter.resolve(&recordings)?.settings,
         trajectories: recordings.len() * (args.train_pieces + 1),

@@ -5,10 +5,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use clap::Args;
+use nalgebra::DMatrix;
 
 use crate::cli::AngleArg;
 use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
-use crate::trajectory::{ReadOptions, Trajectory, read_csv};
+use crate::rosbag::{BagOptions, JointStates, read_joint_states};
+use crate::trajectory::{ReadOptions, Trajectory, read_csv, uniform};
 
 /// Options of reading measured CSV files.
 #[derive(Debug, Args, Clone)]
@@ -25,6 +27,14 @@ pub struct InputArgs {
     /// File columns to ignore (extra columns are an error otherwise).
     #[arg(long = "ignore-column", value_name = "NAME")]
     pub ignored: Vec<String>,
+    /// ROS 2 bags (`.mcap`): the sensor_msgs/JointState topic (needed only
+    /// when the bag has several).
+    #[arg(long)]
+    pub topic: Option<String>,
+    /// ROS 2 bags: the joints to read, in the model's order, comma
+    /// separated [default: the first message's joints, in its order].
+    #[arg(long, value_delimiter = ',')]
+    pub joints: Option<Vec<String>>,
 }
 
 fn parse_mapping(text: &str) -> Result<(String, String), String> {
@@ -50,12 +60,27 @@ impl InputArgs {
         }
     }
 
-    /// Reads raw recordings (`dof`: the model's joint count, if known).
+    /// Reads raw recordings (`dof`: the model's joint count, if known): CSV
+    /// files, or ROS 2 bags (`.mcap`) of sensor_msgs/JointState.
     pub fn read_all(&self, paths: &[PathBuf], dof: Option<usize>) -> Result<Vec<Trajectory>> {
-        paths
-            .iter()
-            .map(|path| Ok(read_csv(path, &self.options(dof, 2))?))
-            .collect()
+        paths.iter().map(|path| self.read(path, dof)).collect()
+    }
+
+    /// One recording (see [`InputArgs::read_all`]).
+    pub fn read(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
+        let options = self.options(dof, 2);
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+        {
+            let bag = BagOptions {
+                topic: self.topic.clone(),
+                joints: self.joints.clone(),
+            };
+            let states = read_joint_states(path, &bag)?;
+            return joint_states_trajectory(path, states, &options);
+        }
+        Ok(read_csv(path, &options)?)
     }
 }
 
@@ -198,6 +223,33 @@ pub fn load(
         })
         .collect::<Result<Vec<_>>>()?;
     Ok((processed, pipeline))
+}
+
+/// A bag's joint states in the trajectory contract (ROS units are SI).
+fn joint_states_trajectory(
+    path: &Path,
+    states: JointStates,
+    options: &ReadOptions,
+) -> Result<Trajectory> {
+    let n = states.joints.len();
+    if let Some(dof) = options.dof.filter(|&d| d != n) {
+        bail!(
+            "{}: the bag's JointState has {n} joints ({}), the model {dof}: pick them with \
+             --joints NAME,NAME,... in the model's order",
+            path.display(),
+            states.joints.join(", ")
+        );
+    }
+    let rows = states.t.len();
+    let matrix = |m: &[Vec<f64>]| DMatrix::from_fn(rows, n, |r, c| m[r][c]);
+    let traj = Trajectory::new(
+        states.t,
+        matrix(&states.position),
+        matrix(&states.velocity),
+        None,
+        matrix(&states.effort),
+    )?;
+    Ok(uniform(path, traj, options)?)
 }
 
 /// One file with its own resolved pipeline (commands that process files

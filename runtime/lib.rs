@@ -18,6 +18,7 @@ pub mod mlp;
 pub mod oracle;
 pub mod preprocess;
 pub mod report;
+pub mod rosbag;
 pub mod sim;
 pub mod study;
 pub mod study_report;

@@ -752,6 +752,16 @@ pub fn read_csv(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Trajectory
         table.matrix(Channel::Qdd, opts.units),
         table.required(Channel::Tau, opts.units),
     )?;
+    uniform(path, traj, opts)
+}
+
+/// `traj` resampled to `opts.resample_hz`, or checked for uniform sampling
+/// when no rate is given (any reader's last step).
+pub fn uniform(
+    path: &Path,
+    traj: Trajectory,
+    opts: &ReadOptions,
+) -> Result<Trajectory, TrajectoryError> {
     match opts.resample_hz {
         Some(hz) => {
             let out = resample(&traj, hz)?;

@@ -1,0 +1,412 @@
+//! Joint-state series from ROS 2 bags stored as MCAP (rosbag2's `mcap`
+//! storage plugin), decoded from `sensor_msgs/msg/JointState` in CDR.
+//!
+//! Message indices in errors count the messages on the selected topic from 0,
+//! in file order; log times are the bag's nanoseconds.
+
+mod cdr;
+#[cfg(test)]
+mod tests;
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::io;
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+
+pub use cdr::CdrError;
+
+/// Schema name rosbag2 records for joint states.
+pub const JOINT_STATE_SCHEMA: &str = "sensor_msgs/msg/JointState";
+/// Channel message encoding rosbag2 records for ROS 2 messages.
+pub const CDR_ENCODING: &str = "cdr";
+
+/// One joint-state series from a bag, joints in the order asked for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointStates {
+    /// Names, in the selected order.
+    pub joints: Vec<String>,
+    /// Seconds from the first kept message (header stamp; log time if the stamp is zero).
+    pub t: Vec<f64>,
+    /// `[sample][joint]`.
+    pub position: Vec<Vec<f64>>,
+    pub velocity: Vec<Vec<f64>>,
+    pub effort: Vec<Vec<f64>>,
+}
+
+/// Which topic and joints to read; `None` picks automatically.
+#[derive(Debug, Clone, Default)]
+pub struct BagOptions {
+    /// Needed only when the bag has several `JointState` topics.
+    pub topic: Option<String>,
+    /// Selection and order by name; `None` keeps the first message's names and order.
+    pub joints: Option<Vec<String>>,
+}
+
+/// Where in a bag a message-level problem is.
+#[derive(Debug, Clone)]
+pub struct MessageAt {
+    pub path: PathBuf,
+    pub topic: String,
+    pub index: usize,
+    pub log_time: u64,
+}
+
+impl fmt::Display for MessageAt {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}: topic '{}', message {} (log time {} ns)",
+            self.path.display(),
+            self.topic,
+            self.index,
+            self.log_time
+        )
+    }
+}
+
+/// Errors from reading joint states out of a bag.
+#[derive(Debug, Error)]
+pub enum BagError {
+    #[error("{}: cannot read the bag: {source}", .path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("{}: not a readable MCAP file: {source}", .path.display())]
+    Mcap {
+        path: PathBuf,
+        #[source]
+        source: mcap::McapError,
+    },
+    #[error("{}: no topic carries {JOINT_STATE_SCHEMA} in {CDR_ENCODING} encoding; the bag has {found}", .path.display())]
+    NoJointStateTopic { path: PathBuf, found: String },
+    #[error("{}: several {JOINT_STATE_SCHEMA} topics ({topics}); pass --topic to choose one", .path.display())]
+    SeveralTopics { path: PathBuf, topics: String },
+    #[error("{}: no messages on topic '{topic}'; the bag has {found}", .path.display())]
+    TopicNotFound {
+        path: PathBuf,
+        topic: String,
+        found: String,
+    },
+    #[error(
+        "{}: topic '{topic}' has schema '{schema}' in '{encoding}' encoding, expected {JOINT_STATE_SCHEMA} in {CDR_ENCODING}",
+        .path.display()
+    )]
+    WrongTopicType {
+        path: PathBuf,
+        topic: String,
+        schema: String,
+        encoding: String,
+    },
+    #[error("{}: topic '{topic}' has {count} message(s), at least 2 are needed", .path.display())]
+    TooFewMessages {
+        path: PathBuf,
+        topic: String,
+        count: usize,
+    },
+    #[error("{}: joint '{joint}' is requested twice", .path.display())]
+    RequestedTwice { path: PathBuf, joint: String },
+    #[error("{}: joint '{joint}' is not in the bag; the first message on '{topic}' names {present}", .path.display())]
+    UnknownJoint {
+        path: PathBuf,
+        topic: String,
+        joint: String,
+        present: String,
+    },
+    #[error("{at}: malformed JointState: {source}")]
+    Decode {
+        at: MessageAt,
+        #[source]
+        source: CdrError,
+    },
+    #[error("{at}: names no joints")]
+    NoJoints { at: MessageAt },
+    #[error("{at}: joint name '{joint}' appears more than once")]
+    DuplicateJoint { at: MessageAt, joint: String },
+    #[error(
+        "{at}: '{field}' is empty; this tool needs position, velocity and effort for every joint"
+    )]
+    EmptyField { at: MessageAt, field: &'static str },
+    #[error("{at}: '{field}' has {found} values for {names} joint names")]
+    LengthMismatch {
+        at: MessageAt,
+        field: &'static str,
+        found: usize,
+        names: usize,
+    },
+    #[error("{at}: joint '{joint}' is missing; this message names {present}")]
+    MissingJoint {
+        at: MessageAt,
+        joint: String,
+        present: String,
+    },
+    #[error("{at}: {field} of joint '{joint}' is {value}, expected a finite number")]
+    NonFinite {
+        at: MessageAt,
+        field: &'static str,
+        joint: String,
+        value: f64,
+    },
+    #[error(
+        "{at}: time stamps are not increasing ({current:.9} s after {previous:.9} s, from the first message); record with header stamps set per sample by the driver"
+    )]
+    NotIncreasing {
+        at: MessageAt,
+        previous: f64,
+        current: f64,
+    },
+}
+
+type Raw = Vec<(u64, Vec<u8>)>;
+
+/// Reads the joint states of one topic; see the module docs for the error conventions.
+pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointStates, BagError> {
+    let bytes = std::fs::read(path).map_err(|source| BagError::Io {
+        path: path.into(),
+        source,
+    })?;
+    let (topic, raw) = collect_topic(path, &bytes, options.topic.as_deref())?;
+    drop(bytes);
+    if raw.len() < 2 {
+        return Err(BagError::TooFewMessages {
+            path: path.into(),
+            topic,
+            count: raw.len(),
+        });
+    }
+    let at = |index: usize| MessageAt {
+        path: path.into(),
+        topic: topic.clone(),
+        index,
+        log_time: raw[index].0,
+    };
+    let decode = |index: usize, data: &[u8]| {
+        cdr::decode_joint_state(data).map_err(|source| BagError::Decode {
+            at: at(index),
+            source,
+        })
+    };
+
+    // The first message is decoded again in the loop; selection needs it first.
+    let first = decode(0, &raw[0].1)?;
+    if let Some(joint) = first_duplicate(&first.name) {
+        return Err(BagError::DuplicateJoint { at: at(0), joint });
+    }
+    let joints = match &options.joints {
+        None => first.name.clone(),
+        Some(list) => {
+            if let Some(joint) = first_duplicate(list) {
+                return Err(BagError::RequestedTwice {
+                    path: path.into(),
+                    joint,
+                });
+            }
+            if let Some(joint) = list.iter().find(|j| !first.name.contains(j)) {
+                return Err(BagError::UnknownJoint {
+                    path: path.into(),
+                    topic: topic.clone(),
+                    joint: joint.clone(),
+                    present: quoted(&first.name),
+                });
+            }
+            list.clone()
+        }
+    };
+    if joints.is_empty() {
+        return Err(BagError::NoJoints { at: at(0) });
+    }
+    let column = |names: &[String], joint: &String| names.iter().position(|n| n == joint);
+    let first_columns: Vec<usize> = joints
+        .iter()
+        .filter_map(|j| column(&first.name, j))
+        .collect();
+
+    let n = raw.len();
+    let mut out = JointStates {
+        joints,
+        t: Vec::with_capacity(n),
+        position: Vec::with_capacity(n),
+        velocity: Vec::with_capacity(n),
+        effort: Vec::with_capacity(n),
+    };
+    let mut t0 = None;
+    let mut previous: Option<i128> = None;
+    for (index, (log_time, data)) in raw.iter().enumerate() {
+        let msg = decode(index, data)?;
+        let fields = [
+            ("position", &msg.position),
+            ("velocity", &msg.velocity),
+            ("effort", &msg.effort),
+        ];
+        for (field, values) in fields {
+            if values.is_empty() {
+                return Err(BagError::EmptyField {
+                    at: at(index),
+                    field,
+                });
+            }
+            if values.len() != msg.name.len() {
+                return Err(BagError::LengthMismatch {
+                    at: at(index),
+                    field,
+                    found: values.len(),
+                    names: msg.name.len(),
+                });
+            }
+        }
+        // Another publisher may send a subset or another order: match by name.
+        let columns = if msg.name == first.name {
+            first_columns.clone()
+        } else {
+            if let Some(joint) = first_duplicate(&msg.name) {
+                return Err(BagError::DuplicateJoint {
+                    at: at(index),
+                    joint,
+                });
+            }
+            let mut columns = Vec::with_capacity(out.joints.len());
+            for joint in &out.joints {
+                columns.push(
+                    column(&msg.name, joint).ok_or_else(|| BagError::MissingJoint {
+                        at: at(index),
+                        joint: joint.clone(),
+                        present: quoted(&msg.name),
+                    })?,
+                );
+            }
+            columns
+        };
+        let sinks = [&mut out.position, &mut out.velocity, &mut out.effort];
+        for ((field, values), sink) in fields.into_iter().zip(sinks) {
+            let mut row = Vec::with_capacity(columns.len());
+            for (&c, joint) in columns.iter().zip(&out.joints) {
+                let value = values[c];
+                if !value.is_finite() {
+                    return Err(BagError::NonFinite {
+                        at: at(index),
+                        field,
+                        joint: joint.clone(),
+                        value,
+                    });
+                }
+                row.push(value);
+            }
+            sink.push(row);
+        }
+
+        // Integer nanoseconds so that the ordering check is exact.
+        let ns = if msg.sec == 0 && msg.nanosec == 0 {
+            i128::from(*log_time)
+        } else {
+            i128::from(msg.sec) * 1_000_000_000 + i128::from(msg.nanosec)
+        };
+        let t0 = *t0.get_or_insert(ns);
+        let seconds = |ns: i128| (ns - t0) as f64 / 1e9;
+        if let Some(prev) = previous
+            && ns <= prev
+        {
+            return Err(BagError::NotIncreasing {
+                at: at(index),
+                previous: seconds(prev),
+                current: seconds(ns),
+            });
+        }
+        previous = Some(ns);
+        out.t.push(seconds(ns));
+    }
+    Ok(out)
+}
+
+/// Streams the whole bag once, keeping the raw messages of the JointState
+/// topics that may be selected, then picks the topic.
+fn collect_topic(
+    path: &Path,
+    bytes: &[u8],
+    wanted: Option<&str>,
+) -> Result<(String, Raw), BagError> {
+    let mcap_error = |source| BagError::Mcap {
+        path: path.into(),
+        source,
+    };
+    // topic -> (schema, encoding), for error messages.
+    let mut seen: BTreeMap<String, (String, String)> = BTreeMap::new();
+    let mut candidates: BTreeMap<String, Raw> = BTreeMap::new();
+    for message in mcap::MessageStream::new(bytes).map_err(mcap_error)? {
+        let message = message.map_err(mcap_error)?;
+        let channel = &message.channel;
+        let schema = channel
+            .schema
+            .as_ref()
+            .map_or("(no schema)", |s| s.name.as_str());
+        if !seen.contains_key(&channel.topic) {
+            let kind = (schema.to_string(), channel.message_encoding.clone());
+            seen.insert(channel.topic.clone(), kind);
+        }
+        let keep = schema == JOINT_STATE_SCHEMA
+            && channel.message_encoding == CDR_ENCODING
+            && wanted.is_none_or(|w| w == channel.topic);
+        if keep {
+            let topic = channel.topic.clone();
+            let entry = (message.log_time, message.data.into_owned());
+            candidates.entry(topic).or_default().push(entry);
+        }
+    }
+    let found = || {
+        if seen.is_empty() {
+            return "no messages".to_string();
+        }
+        let topics: Vec<String> = seen
+            .iter()
+            .map(|(topic, (schema, encoding))| format!("'{topic}' ({schema}, {encoding})"))
+            .collect();
+        format!("topics {}", topics.join(", "))
+    };
+    if let Some(topic) = wanted {
+        if let Some(raw) = candidates.remove(topic) {
+            return Ok((topic.to_string(), raw));
+        }
+        return Err(match seen.get(topic) {
+            Some((schema, encoding)) => BagError::WrongTopicType {
+                path: path.into(),
+                topic: topic.to_string(),
+                schema: schema.clone(),
+                encoding: encoding.clone(),
+            },
+            None => BagError::TopicNotFound {
+                path: path.into(),
+                topic: topic.to_string(),
+                found: found(),
+            },
+        });
+    }
+    if candidates.len() > 1 {
+        let topics: Vec<String> = candidates.keys().cloned().collect();
+        return Err(BagError::SeveralTopics {
+            path: path.into(),
+            topics: quoted(&topics),
+        });
+    }
+    candidates
+        .pop_first()
+        .ok_or_else(|| BagError::NoJointStateTopic {
+            path: path.into(),
+            found: found(),
+        })
+}
+
+fn first_duplicate(names: &[String]) -> Option<String> {
+    let mut sorted: Vec<&String> = names.iter().collect();
+    sorted.sort_unstable();
+    sorted
+        .windows(2)
+        .find(|w| w[0] == w[1])
+        .map(|w| w[0].clone())
+}
+
+fn quoted(names: &[String]) -> String {
+    let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
+    quoted.join(", ")
+}
