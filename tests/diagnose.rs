@@ -24,7 +24,7 @@ fn diagnose_auto(recordings: &[Trajectory]) -> Diagnosis {
 
 /// Measured recordings of `truth` tracking the nominal model's references
 /// (20 s at 1 kHz each, sensor noise), before preprocessing.
-fn raw_recordings(truth: &Model, count: u64) -> Vec<Trajectory> {
+pub(crate) fn raw_recordings(truth: &Model, count: u64) -> Vec<Trajectory> {
     let nominal = sdnn::model(NOMINAL).unwrap();
     let waypoints = WaypointConfig {
         limits: study::limits(nominal, &StudyConfig::default()).unwrap(),
@@ -239,7 +239,7 @@ fn the_same_recording_twice_is_an_error() {
 
 /// Adds a point mass `mass` at `com` (body frame) to an oracle body's
 /// standard parameters: m, m*c and m(|c|^2 E - c c^T) about the origin.
-fn add_point_mass(parameters: &mut [f64; 10], mass: f64, com: [f64; 3]) {
+pub(crate) fn add_point_mass(parameters: &mut [f64; 10], mass: f64, com: [f64; 3]) {
     let [x, y, z] = com;
     let added = [
         mass,
