@@ -66,8 +66,15 @@ impl InputArgs {
         paths.iter().map(|path| self.read(path, dof)).collect()
     }
 
-    /// One recording (see [`InputArgs::read_all`]).
+    /// One recording (see [`InputArgs::read_all`]), its values checked
+    /// against [`PLAUSIBLE`].
     pub fn read(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
+        let traj = self.read_unchecked(path, dof)?;
+        check_plausible(path, &traj)?;
+        Ok(traj)
+    }
+
+    fn read_unchecked(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
         let options = self.options(dof, 2);
         if path
             .extension()
@@ -223,6 +230,27 @@ pub fn load(
         })
         .collect::<Result<Vec<_>>>()?;
     Ok((processed, pipeline))
+}
+
+/// Largest magnitudes accepted from a recording, far beyond any arm
+/// (angles of 160 turns, 1000 rad/s, a million N m): a value past them is
+/// a logging fault, and squared in the dynamics it would overflow.
+pub const PLAUSIBLE: [(&str, f64); 3] = [("q", 1e3), ("qd", 1e3), ("tau", 1e6)];
+
+fn check_plausible(path: &Path, traj: &Trajectory) -> Result<()> {
+    for ((name, limit), m) in PLAUSIBLE.iter().zip([traj.q(), traj.qd(), traj.tau()]) {
+        if let Some(at) = m.iter().position(|v| v.abs() > *limit) {
+            let (row, joint) = (at % m.nrows(), at / m.nrows() + 1);
+            bail!(
+                "{}: sample {} (t = {} s), column {name}{joint} = {:e}: beyond any arm (|{name}| <= {limit:e})",
+                path.display(),
+                row + 1,
+                traj.t()[row],
+                m[at]
+            );
+        }
+    }
+    Ok(())
 }
 
 /// A bag's joint states in the trajectory contract (ROS units are SI).

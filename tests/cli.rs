@@ -200,3 +200,25 @@ fn import_urdf_rejects_a_prismatic_joint_on_the_chain_by_name() {
         "{stderr}"
     );
 }
+
+/// A velocity no arm reaches (finite, but it overflows once squared) is a
+/// located error before any filtering or fit: no hang, no NaN.
+#[test]
+fn an_implausible_value_is_a_located_error() {
+    let dir = Dir::new();
+    let mut text = String::from("t,q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n");
+    for i in 0..400 {
+        let qd = if i == 123 { "1e200" } else { "0.1" };
+        text.push_str(&format!("{},0,0,0,{qd},0,0,0,0,0\n", i as f64 * 0.01));
+    }
+    let file = dir.write("bad.csv", &text);
+    for command in ["diagnose", "evaluate"] {
+        let run = sdnn(&[command, "--data", file.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{command}: {stderr}");
+        assert!(
+            stderr.contains("bad.csv: sample 124") && stderr.contains("qd1 = 1e200"),
+            "{command}: {stderr}"
+        );
+    }
+}

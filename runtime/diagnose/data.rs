@@ -100,6 +100,17 @@ impl Rows {
         .chain(self.generic.iter_mut())
     }
 
+    /// The first row where any signal is not finite.
+    fn first_non_finite(&self) -> Option<usize> {
+        [&self.residual, &self.measured]
+            .into_iter()
+            .chain(self.own.iter())
+            .chain(self.inertial.iter())
+            .chain(self.generic.iter())
+            .filter_map(|v| v.iter().position(|x| !x.is_finite()))
+            .min()
+    }
+
     /// The fitted columns.
     fn fitted_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
         self.own
@@ -186,6 +197,15 @@ pub(super) fn stack(
                 (rows(model, &traj, &rest)?, (0..traj.len()).collect(), dt)
             }
         };
+        if let Some(at) = rows.first_non_finite() {
+            let (sample, joint) = (at / n, at % n + 1);
+            anyhow::bail!(
+                "recording {}: the model's torque or regressor is not finite at sample {sample}, \
+                 joint {joint} (after preprocessing): the recording holds values no arm reaches \
+                 (check its velocities and positions there)",
+                g + 1
+            );
+        }
         trimmed = samples.first().copied().unwrap_or(0);
         durations.push(samples.len() as f64 * dt * settings.downsample.max(1) as f64);
         kept.push(rows.keep(n, &samples));

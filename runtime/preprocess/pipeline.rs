@@ -115,6 +115,14 @@ impl Pipeline {
         let dt = super::step(&states);
         let predicted = settings.smooth_columns(&predict(&states)?, dt)?;
         let measured = settings.smooth_columns(raw.tau(), dt)?;
+        if let Some(at) = predicted.iter().position(|x| !x.is_finite()) {
+            anyhow::bail!(
+                "the predicted torque is not finite at sample {}, joint {}: the recording holds \
+                 values no arm reaches (check its velocities and positions there)",
+                at % predicted.nrows(),
+                at / predicted.nrows() + 1
+            );
+        }
         let keep = Self::kept_samples(&settings, raw.len(), dt);
         Ok((
             measured.select_rows(keep.iter()),
