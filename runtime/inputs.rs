@@ -10,7 +10,7 @@ use nalgebra::DMatrix;
 use crate::cli::AngleArg;
 use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
 use crate::rosbag::{BagOptions, JointStates, read_joint_states};
-use crate::trajectory::{ReadOptions, Trajectory, read_csv, uniform};
+use crate::trajectory::{ReadOptions, Trajectory, TrajectoryError, read_csv, uniform};
 
 /// Options of reading measured CSV files.
 #[derive(Debug, Args, Clone)]
@@ -18,7 +18,8 @@ pub struct InputArgs {
     /// Unit of q, qd and qdd in the files (Kinova's API logs degrees).
     #[arg(long, value_enum, default_value_t)]
     pub angles: AngleArg,
-    /// Resample jittery timestamps to this uniform rate (Hz) by linear interpolation.
+    /// Resample to this uniform rate (Hz) by linear interpolation [default:
+    /// files with jittery timestamps are resampled at their median rate].
     #[arg(long)]
     pub resample: Option<f64>,
     /// Map a file column to a contract column, e.g. `--column time=t --column pos1=q1`.
@@ -74,8 +75,44 @@ impl InputArgs {
         Ok(traj)
     }
 
+    /// Reads at the given `--resample` rate; without one, a jittery file
+    /// is resampled at its median rate (said on standard error), since a
+    /// real log's timestamps rarely tick evenly.
     fn read_unchecked(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
-        let options = self.options(dof, 2);
+        match self.read_at(path, dof, self.resample) {
+            Err(e) if self.resample.is_none() => match e.downcast_ref::<TrajectoryError>() {
+                Some(TrajectoryError::NonUniformSampling {
+                    min_step,
+                    max_step,
+                    median_step,
+                    ..
+                }) => {
+                    let hz = (1.0 / median_step).round().max(1.0);
+                    eprintln!(
+                        "{}: time steps range from {:.3} to {:.3} ms: resampled to {hz} Hz, the \
+                         median rate, by linear interpolation (--resample HZ chooses another)",
+                        path.display(),
+                        1e3 * min_step,
+                        1e3 * max_step
+                    );
+                    self.read_at(path, dof, Some(hz))
+                }
+                _ => Err(e),
+            },
+            other => other,
+        }
+    }
+
+    fn read_at(
+        &self,
+        path: &Path,
+        dof: Option<usize>,
+        resample: Option<f64>,
+    ) -> Result<Trajectory> {
+        let options = ReadOptions {
+            resample_hz: resample,
+            ..self.options(dof, 2)
+        };
         if path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))

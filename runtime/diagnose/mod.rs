@@ -239,6 +239,26 @@ impl Default for Settings {
     }
 }
 
+/// Fits the first moment alone (the mass held as modelled) for these body
+/// candidates.
+fn hold_mass(candidates: &mut [candidate::Candidate], which: &[usize]) {
+    for &c in which {
+        if let Shape::Body {
+            offset,
+            base_mass,
+            base_moment,
+        } = candidates[c].shape
+        {
+            candidates[c].shape = Shape::Moment {
+                offset,
+                base_mass,
+                base_moment,
+            };
+            candidates[c].names = vec!["mx", "my", "mz"];
+        }
+    }
+}
+
 /// Diagnoses `model` on raw recordings, preprocessed by `pipeline`.
 pub fn diagnose(
     model: &dyn Dynamics,
@@ -261,27 +281,24 @@ pub fn diagnose(
     let moments = Moments::new(&data, &candidates);
     // A link whose origin does not accelerate has no mass column of its
     // own: its mass acts only through its second moments, which identify it
-    // if the inertia about the COM is as modelled (noted); where they do not
-    // either, only the first moment is fitted.
-    let (second_moments, massless): (Vec<usize>, Vec<usize>) = (0..candidates.len())
+    // if the inertia about the COM is as modelled (noted); where they do not,
+    // or where the body it fits is rejected, only the first moment is fitted.
+    let (mut second_moments, massless): (Vec<usize>, Vec<usize>) = (0..candidates.len())
         .filter(|&c| !mass_identifiable(&moments, &candidates, c, size))
         .partition(|&c| body_identifiable(&moments, &candidates, c));
-    for c in massless {
-        if let Shape::Body {
-            offset,
-            base_mass,
-            base_moment,
-        } = candidates[c].shape
-        {
-            candidates[c].shape = Shape::Moment {
-                offset,
-                base_mass,
-                base_moment,
-            };
-            candidates[c].names = vec!["mx", "my", "mz"];
-        }
+    hold_mass(&mut candidates, &massless);
+    let mut selection = select(&moments, data.dof, &candidates, settings);
+    let retry: Vec<usize> = second_moments
+        .iter()
+        .copied()
+        .filter(|c| selection.rejected.contains(c))
+        .collect();
+    if !retry.is_empty() {
+        hold_mass(&mut candidates, &retry);
+        second_moments.retain(|c| !retry.contains(c));
+        selection = select(&moments, data.dof, &candidates, settings);
     }
-    let (selected, mut notes) = select(&moments, data.dof, &candidates, settings);
+    let (selected, mut notes) = (selection.selected, selection.notes);
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = fit::cv_mse(

@@ -11,11 +11,17 @@ use super::{COLLINEAR, Kind, Settings};
 
 /// Whether a body candidate's mass and COM are identifiable together
 /// (through the second moments too, with the inertia about the COM held):
-/// the fit's scaled information has no eigenvalue below [`COLLINEAR`].
+/// the fit's scaled information has no eigenvalue below [`COLLINEAR`], and
+/// the mass it fits alone is a plausible one for the link (within
+/// [`MASS_FACTOR`] of the model's), not the trace of another effect.
 pub(super) fn body_identifiable(m: &Moments, candidates: &[Candidate], c: usize) -> bool {
-    matches!(candidates[c].shape, Shape::Body { .. })
-        && fit(m, candidates, &[c], |_| true)
-            .is_some_and(|f| identifiability(&f.information, 0..4) >= COLLINEAR)
+    let Shape::Body { base_mass, .. } = candidates[c].shape else {
+        return false;
+    };
+    fit(m, candidates, &[c], |_| true).is_some_and(|f| {
+        identifiability(&f.information, 0..4) >= COLLINEAR
+            && (base_mass / MASS_FACTOR..=base_mass * MASS_FACTOR).contains(&f.theta[0])
+    })
 }
 
 /// Whether the data identify the mass of an `inertial_error` candidate's
@@ -78,7 +84,7 @@ pub(super) fn select(
     dof: usize,
     candidates: &[Candidate],
     settings: Settings,
-) -> (Vec<usize>, Vec<String>) {
+) -> Selection {
     let mut selected: Vec<usize> = Vec::new();
     let mut refused: Vec<usize> = Vec::new();
     let mut notes = Vec::new();
@@ -151,7 +157,8 @@ pub(super) fn select(
         selected = trial;
         current = mse;
     }
-    prune(m, candidates, &mut selected, &mut notes, settings);
+    let dropped = prune(m, candidates, &mut selected, &mut notes, settings);
+    refused.extend(dropped);
     for &c in &unidentifiable {
         let mut trial = selected.clone();
         trial.push(c);
@@ -171,7 +178,20 @@ pub(super) fn select(
             ));
         }
     }
-    (selected, notes)
+    Selection {
+        selected,
+        notes,
+        rejected: refused,
+    }
+}
+
+/// What forward selection and pruning decided.
+pub(super) struct Selection {
+    pub(super) selected: Vec<usize>,
+    pub(super) notes: Vec<String>,
+    /// Candidates refused (not significant, not physical, collinear) or
+    /// dropped by the prune.
+    pub(super) rejected: Vec<usize>,
 }
 
 /// Backward check of the forward selection: an effect named early can lose
@@ -184,7 +204,8 @@ pub(super) fn prune(
     selected: &mut Vec<usize>,
     notes: &mut Vec<String>,
     settings: Settings,
-) {
+) -> Vec<usize> {
+    let mut dropped_all = Vec::new();
     loop {
         let failing = selected.iter().position(|&c| {
             let mut trial: Vec<usize> = selected.iter().copied().filter(|&s| s != c).collect();
@@ -197,8 +218,11 @@ pub(super) fn prune(
                 None => true,
             }
         });
-        let Some(position) = failing else { return };
+        let Some(position) = failing else {
+            return dropped_all;
+        };
         let dropped = selected.remove(position);
+        dropped_all.push(dropped);
         notes.push(format!(
             "{}: named while selecting, but not significant or not physical once the other \
              effects are fitted with it; dropped",
