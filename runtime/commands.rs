@@ -13,6 +13,7 @@ use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
 use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed};
 use crate::mlp::{Dataset, Mlp};
+use crate::preprocess::Compared;
 use crate::study::{self, StudyConfig, mse_per_joint};
 use crate::trajectory::{
     ReadOptions, read_states_csv, write_csv, write_torques, write_torques_csv,
@@ -390,20 +391,26 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     let network = args.nn.as_ref().map(Mlp::load).transpose()?;
     let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
     let pipeline = args.filter.resolve(&recordings)?;
-    let mut predicted = Vec::new();
-    let mut measured = Vec::new();
+    let mut compared = Vec::new();
     for (raw, path) in recordings.iter().zip(&args.data) {
-        let (m, p) = pipeline
-            .compare(raw, |traj| match &network {
-                Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
-                None => model_torques(model, traj),
-            })
-            .with_context(|| path.display().to_string())?;
-        predicted.push(p);
-        measured.push(m);
+        compared.push(
+            pipeline
+                .compare(raw, |traj| match &network {
+                    Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
+                    None => model_torques(model, traj),
+                })
+                .with_context(|| path.display().to_string())?,
+        );
     }
-    let (p, m) = (study::stack(predicted), study::stack(measured));
+    let stacked = |f: fn(&Compared) -> &DMatrix<f64>| {
+        study::stack(compared.iter().map(|c| f(c).clone()).collect())
+    };
+    let (p, m) = (stacked(|c| &c.predicted), stacked(|c| &c.measured));
     let mse = mse_per_joint(&p, &m);
+    let mse_as_logged = mse_per_joint(
+        &stacked(|c| &c.predicted_unfiltered),
+        &stacked(|c| &c.measured_as_logged),
+    );
     let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
     let name = args
         .nn
@@ -414,14 +421,18 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
             "{}",
             serde_json::json!({
                 "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
-                "preprocessing": pipeline,
+                "mse_torque_as_logged": mse_as_logged, "preprocessing": pipeline,
             })
         ),
         Format::Text => {
             println!("model {name}: {} samples", m.nrows());
             println!("{}", pipeline.summary());
             for (j, v) in mse.iter().enumerate() {
-                println!("  joint {}: MSE {v:.6} N m^2", j + 1);
+                println!(
+                    "  joint {}: MSE {v:.6} N m^2 (against the torque as logged: {:.6})",
+                    j + 1,
+                    mse_as_logged[j]
+                );
             }
             println!("  mean:    MSE {mean:.6} N m^2");
         }

@@ -3,7 +3,7 @@
 
 use sdnn::study::{self, StudyConfig};
 
-use crate::util::{Dir, sdnn, sdnn_json};
+use crate::util::{Dir, root, sdnn, sdnn_json};
 
 fn small() -> StudyConfig {
     StudyConfig {
@@ -264,4 +264,65 @@ fn study_on_a_measured_recording_splits_it_in_time() {
         Some(2),
         "nothing left to test must be an error"
     );
+}
+
+/// The real Panda log (../shared/reference/panda_gaz2019, read in place)
+/// with no preprocessing flags: the jittery log is resampled at its median
+/// rate, and the rigid-body MSE against the torque as logged is within 10%
+/// of the README's independent check (numpy RNEA, 10 Hz Butterworth on the
+/// velocity) on every joint.
+#[test]
+fn the_panda_log_needs_no_flags() {
+    let log = root().join("../shared/reference/panda_gaz2019/Trajectory_1/rbt_log");
+    let dir = Dir::new();
+    let csv = dir.path().join("panda.csv");
+    let channel = |name: &str| log.join(name).to_str().unwrap().to_string();
+    let (time, positions, velocities, torques) = (
+        channel("exciting_traj_time.txt"),
+        channel("exciting_traj_positions.txt"),
+        channel("exciting_traj_velocity.txt"),
+        channel("exciting_traj_torques.txt"),
+    );
+    let run = sdnn(&[
+        "import-log",
+        "--time",
+        &time,
+        "--positions",
+        &positions,
+        "--velocities",
+        &velocities,
+        "--torques",
+        &torques,
+        "--dof",
+        "7",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let run = sdnn(&[
+        "evaluate",
+        "--model",
+        "panda",
+        "--data",
+        csv.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(stderr.contains("resampled to 1000 Hz"), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let check = [0.210, 0.557, 0.180, 0.496, 0.120, 0.046, 0.078];
+    for (j, expected) in check.iter().enumerate() {
+        let mse = report["mse_torque_as_logged"][j].as_f64().unwrap();
+        assert!(
+            (mse - expected).abs() <= 0.1 * expected,
+            "joint {}: {mse} vs the independent check's {expected}: {report}",
+            j + 1
+        );
+    }
 }

@@ -27,7 +27,7 @@ pub use butterworth::ZeroPhaseLowPass;
 pub use filters::{
     Centering, PreprocessError, central_difference, downsample, moving_average, savitzky_golay,
 };
-pub use pipeline::{Pipeline, Preset};
+pub use pipeline::{Compared, Pipeline, Preset};
 
 use crate::trajectory::Trajectory;
 

@@ -9,6 +9,19 @@ use super::auto::{self, Choice, sample_rate};
 use super::{Filter, Preprocess, PreprocessError};
 use crate::trajectory::Trajectory;
 
+/// Torques compared by [`Pipeline::compare`], samples x joints.
+#[derive(Debug, Clone)]
+pub struct Compared {
+    /// Measured and predicted torque, both through the torque filter.
+    pub measured: DMatrix<f64>,
+    pub predicted: DMatrix<f64>,
+    /// The same samples of the torque as logged and of the prediction
+    /// unfiltered (on the filtered states), for a comparison with tools that
+    /// filter only the states.
+    pub measured_as_logged: DMatrix<f64>,
+    pub predicted_unfiltered: DMatrix<f64>,
+}
+
 /// A named set of preprocessing defaults.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
@@ -104,16 +117,22 @@ impl Pipeline {
         &self,
         raw: &Trajectory,
         predict: impl Fn(&Trajectory) -> anyhow::Result<DMatrix<f64>>,
-    ) -> anyhow::Result<(DMatrix<f64>, DMatrix<f64>)> {
+    ) -> anyhow::Result<Compared> {
         let settings = self.for_recording(raw);
         if !matches!(settings.filter, Filter::Butterworth { .. }) {
             let traj = settings.apply(raw)?;
             let predicted = predict(&traj)?;
-            return Ok((traj.tau().clone(), predicted));
+            return Ok(Compared {
+                measured_as_logged: traj.tau().clone(),
+                predicted_unfiltered: predicted.clone(),
+                measured: traj.tau().clone(),
+                predicted,
+            });
         }
         let states = settings.states_at_full_rate(raw)?;
         let dt = super::step(&states);
-        let predicted = settings.smooth_columns(&predict(&states)?, dt)?;
+        let unfiltered = predict(&states)?;
+        let predicted = settings.smooth_columns(&unfiltered, dt)?;
         let measured = settings.smooth_columns(raw.tau(), dt)?;
         if let Some(at) = predicted.iter().position(|x| !x.is_finite()) {
             anyhow::bail!(
@@ -124,10 +143,12 @@ impl Pipeline {
             );
         }
         let keep = Self::kept_samples(&settings, raw.len(), dt);
-        Ok((
-            measured.select_rows(keep.iter()),
-            predicted.select_rows(keep.iter()),
-        ))
+        Ok(Compared {
+            measured: measured.select_rows(keep.iter()),
+            predicted: predicted.select_rows(keep.iter()),
+            measured_as_logged: raw.tau().select_rows(keep.iter()),
+            predicted_unfiltered: unfiltered.select_rows(keep.iter()),
+        })
     }
 
     /// The samples a Butterworth pipeline keeps of a recording of `len`

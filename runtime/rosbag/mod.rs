@@ -69,13 +69,14 @@ impl fmt::Display for MessageAt {
 /// Errors from reading joint states out of a bag.
 #[derive(Debug, Error)]
 pub enum BagError {
-    #[error("{}: cannot read the bag: {source}", .path.display())]
+    // The source's text is printed by the caller's error chain, not here.
+    #[error("{}: cannot read the bag", .path.display())]
     Io {
         path: PathBuf,
         #[source]
         source: io::Error,
     },
-    #[error("{}: not a readable MCAP file: {source}", .path.display())]
+    #[error("{}: not a readable MCAP file", .path.display())]
     Mcap {
         path: PathBuf,
         #[source]
@@ -116,7 +117,7 @@ pub enum BagError {
         joint: String,
         present: String,
     },
-    #[error("{at}: malformed JointState: {source}")]
+    #[error("{at}: malformed JointState")]
     Decode {
         at: MessageAt,
         #[source]

@@ -169,8 +169,15 @@ fn read(
     read_joint_states(path, &options)
 }
 
+/// The error and its sources, as the command line prints them.
 fn err_text(path: &Path, result: Result<JointStates, BagError>) -> String {
-    let text = result.expect_err("expected an error").to_string();
+    let error = result.expect_err("expected an error");
+    let mut text = error.to_string();
+    let mut source = std::error::Error::source(&error);
+    while let Some(inner) = source {
+        text.push_str(&format!(": {inner}"));
+        source = inner.source();
+    }
     assert!(
         text.contains(&path.display().to_string()),
         "no path in: {text}"
