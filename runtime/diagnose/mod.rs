@@ -216,6 +216,10 @@ pub struct Settings {
     pub segments: Option<usize>,
 }
 
+/// Shortest total duration diagnosed, s: two cross-validation segments of
+/// 2 s (shorter data cannot tell an effect from chance).
+pub const MIN_SECONDS: f64 = 4.0;
+
 /// Relative eigenvalue of a candidate's unit-diagonal information matrix
 /// below which its parameters are taken as not identifiable.
 pub const COLLINEAR: f64 = 1e-6;
@@ -271,11 +275,12 @@ pub fn diagnose(
         .filter(|r| r.is_finite() && *r > 0.0)
         .unwrap_or(1.0);
     let (data, mut candidates, layout) = stack(model, recordings, pipeline, settings.segments)?;
-    if layout.segments < 2 {
+    let seconds = layout.segments as f64 * layout.segment_seconds;
+    if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(
-            "the recordings are too short to cross-validate: {} segment(s) of {:.1} s",
-            layout.segments,
-            layout.segment_seconds
+            "the recordings hold {seconds:.2} s of data after preprocessing ({} segment(s)): the \
+             diagnosis needs at least {MIN_SECONDS} s to cross-validate (two segments of 2 s)",
+            layout.segments
         );
     }
     let moments = Moments::new(&data, &candidates);

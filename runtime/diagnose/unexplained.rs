@@ -21,6 +21,9 @@ use super::fit::pseudo_solve;
 /// predict held out before the joint is reported as unexplained.
 pub const UNEXPLAINED_GAIN: f64 = 0.2;
 
+/// Residual RMS (N m) below which a joint's residual is taken as exact.
+pub const QUIET: f64 = 1e-6;
+
 /// Structure left on one joint.
 #[derive(Debug, Clone, Serialize)]
 pub struct Unexplained {
@@ -52,7 +55,8 @@ pub(super) fn unexplained(data: &Stacked, after: &[f64]) -> Vec<Unexplained> {
         .filter_map(|j| {
             let total: f64 = rows(data, j).map(|r| after[r] * after[r]).sum();
             let count = rows(data, j).count();
-            if total <= 0.0 || count == 0 {
+            // Below a micro-newton-metre nothing is measurable structure.
+            if count == 0 || total / (count as f64) < QUIET * QUIET {
                 return None;
             }
             let share = |features: &[usize]| 1.0 - cv_sse(data, after, j, features) / total;
