@@ -222,3 +222,19 @@ fn an_implausible_value_is_a_located_error() {
         );
     }
 }
+
+/// A recording too short to cross-validate is refused, not diagnosed.
+#[test]
+fn a_recording_under_four_seconds_is_refused() {
+    let dir = Dir::new();
+    let mut text = String::from("t,q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n");
+    for i in 0..1000 {
+        let t = i as f64 * 0.001;
+        text.push_str(&format!("{t},{},0,0,{},0,0,0,0,0\n", t.sin(), t.cos()));
+    }
+    let file = dir.write("short.csv", &text);
+    let run = sdnn(&["diagnose", "--data", file.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("at least 4 s"), "{stderr}");
+}
