@@ -346,7 +346,14 @@ pub fn diagnose(
         mse_after,
         mse_after_fitted,
         effects,
-        unexplained: unexplained::unexplained(&data, &residuals.after),
+        unexplained: unexplained::unexplained(
+            &data,
+            &residuals.after,
+            pipeline
+                .choice
+                .as_ref()
+                .and_then(|c| Some((c.motion_bandwidth_hz?, c.decimated_rate_hz))),
+        ),
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         residuals,

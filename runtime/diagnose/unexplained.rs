@@ -33,6 +33,10 @@ pub struct Unexplained {
     pub residual_mse: f64,
     /// Share of it the generic features predict held out.
     pub predictable_share: f64,
+    /// Share of its power below the motion's bandwidth (the rest lies
+    /// between the bandwidth and the filter's cut-off); `None` when the
+    /// bandwidth is unknown.
+    pub slow_share: Option<f64>,
     /// Regimes whose features alone predict at least a tenth of it, best first.
     pub regimes: Vec<RegimeShare>,
     /// The sentence the text report prints.
@@ -47,7 +51,13 @@ pub struct RegimeShare {
 }
 
 /// Joints whose residual `after` (per stacked row) is still predictable.
-pub(super) fn unexplained(data: &Stacked, after: &[f64]) -> Vec<Unexplained> {
+/// `band`: the motion's bandwidth and the decimated sample rate (Hz), to
+/// split what is left into what varies like the motion and what is faster.
+pub(super) fn unexplained(
+    data: &Stacked,
+    after: &[f64],
+    band: Option<(f64, f64)>,
+) -> Vec<Unexplained> {
     let all: Vec<usize> = (0..GENERIC_FEATURES.len()).collect();
     let mut regimes: Vec<&'static str> = GENERIC_FEATURES.iter().map(|f| f.0).collect();
     regimes.dedup();
@@ -79,10 +89,19 @@ pub(super) fn unexplained(data: &Stacked, after: &[f64]) -> Vec<Unexplained> {
                 .collect();
             by_regime.sort_by(|a, b| b.share.total_cmp(&a.share));
             let mse = total / count as f64;
+            let slow_share = band.and_then(|(bandwidth, rate)| slow_share(data, after, j, bandwidth, rate));
+            let frequency = match (slow_share, band) {
+                (Some(share), Some((bandwidth, _))) => format!(
+                    "; {:.0}% of its power varies as slowly as the motion (below {} Hz), the rest faster",
+                    100.0 * share,
+                    super::text::sig(bandwidth)
+                ),
+                _ => String::new(),
+            };
             let text = format!(
                 "joint {}: {:.0}% of the residual left ({} N m RMS) is predictable from the state held \
-                 out, but no candidate effect explains it; it lives in: {} — an effect the model and \
-                 the candidates lack (see the README's list), or a wrong inertial parameter",
+                 out, but no candidate effect explains it; it lives in: {}{frequency} — an effect the \
+                 model and the candidates lack (see the README's list), or a wrong inertial parameter",
                 j + 1,
                 100.0 * predictable,
                 super::text::sig(mse.sqrt()),
@@ -100,11 +119,26 @@ pub(super) fn unexplained(data: &Stacked, after: &[f64]) -> Vec<Unexplained> {
                 joint: j + 1,
                 residual_mse: mse,
                 predictable_share: predictable,
+                slow_share,
                 regimes: by_regime,
                 text,
             })
         })
         .collect()
+}
+
+/// The share of joint `j`'s residual power that a zero-phase low-pass at
+/// the motion's bandwidth keeps, segment by segment (each is contiguous).
+fn slow_share(data: &Stacked, after: &[f64], j: usize, bandwidth: f64, rate: f64) -> Option<f64> {
+    let filter = crate::preprocess::ZeroPhaseLowPass::new(bandwidth, 1.0 / rate).ok()?;
+    let (mut slow, mut total) = (0.0, 0.0);
+    let rows: Vec<usize> = rows(data, j).collect();
+    for segment in rows.chunk_by(|&a, &b| data.group[a] == data.group[b]) {
+        let x: Vec<f64> = segment.iter().map(|&r| after[r]).collect();
+        slow += filter.apply(&x).iter().map(|v| v * v).sum::<f64>();
+        total += x.iter().map(|v| v * v).sum::<f64>();
+    }
+    (total > 0.0).then(|| (slow / total).min(1.0))
 }
 
 fn rows(data: &Stacked, joint: usize) -> impl Iterator<Item = usize> + Clone + '_ {
