@@ -21,7 +21,7 @@ pub struct Identifiability {
     /// barely separate some combination); `None` when nothing is named.
     pub condition_number: Option<f64>,
     /// Pairs of named parameters whose estimates correlate beyond
-    /// [`CONFOUNDED`]: the data trade one for the other.
+    /// 0.9 (`CONFOUNDED`): the data trade one for the other.
     pub confounded: Vec<Confounded>,
 }
 

@@ -1,17 +1,25 @@
-//! Discrepancy diagnosis: where the compiled model and measured data
-//! disagree, which physical effect explains it, and how much it closes the
-//! gap on held-out trajectories.
+//! Discrepancy diagnosis: where the model and measured data disagree, which
+//! physical effect explains it, and how much it closes the gap on held-out
+//! segments of the recordings.
 //!
-//! The residual r = tau_measured - tau_model is linear in the parameters of
+//! The raw recordings are preprocessed by a [`Pipeline`] (by default chosen
+//! from the data), and the residual r = tau_measured - tau_model(filtered
+//! states) and every candidate column pass the torque's filter before
+//! decimation (parallel filtering, [`data`]); the recordings are cut into
+//! contiguous cross-validation segments ([`segment_counts`]).
+//! The residual is linear in the parameters of
 //! every candidate effect: per joint viscous friction (column qd_j), Coulomb
-//! friction (sign(qd_j)), armature (qdd_j) and a torque offset (1); and a
-//! payload on the last link (the generated regressor's m and m*c columns of
-//! that link; the payload's own rotational inertia is neglected). Effects are
+//! friction (sign(qd_j), zero at rest), armature (qdd_j) and a torque offset
+//! (1); a payload on the last link and an inertial error of any other link
+//! (the generated regressor's inertial columns). Effects are
 //! chosen by forward selection, each step keeping the candidate that lowers
-//! the leave-one-trajectory-out cross-validated MSE most, while it lowers it
+//! the leave-one-segment-out MSE most (scored with the fitted columns, so a
+//! sticking joint does not favour a wrong kind; reported MSEs use the applied
+//! model's columns), while it lowers it
 //! by at least `min_gain` and its parameters are significant (|t| > 3, each
-//! with the larger of its least-squares and its delete-one-trajectory
-//! jackknife standard error, as are the reported 95% intervals).
+//! with the larger of its least-squares and its delete-one-segment
+//! jackknife standard error, as are the reported 95% intervals). What no
+//! candidate explains is reported as [`Unexplained`].
 //! A fit with a physically impossible sign (negative friction, armature or
 //! payload mass) is never named as that effect: it is reported as a note
 //! (e.g. a negative "armature" means the model's inertia about that joint is
@@ -36,11 +44,14 @@
 //! the axes of every joint that moves the link (link 2 of the 3-DOF Kinova:
 //! on both the joint-1 and joint-2 axes), that column vanishes and a fitted
 //! mass would come only from the parallel-axis terms of the assumed inertia
-//! about the COM. Rule ([`mass_identifiable`]): with the mass put in the
+//! about the COM. Rule (`select::mass_identifiable`): with the mass put in the
 //! first moments' units by the arm's size, the mass is identifiable when the
 //! information left about it once the link's first moments are projected
 //! out is at least [`COLLINEAR`] times the largest eigenvalue of the link's
-//! (mass, first moment) information. When it is not, the candidate fits the
+//! (mass, first moment) information. When it is not, the mass is fitted
+//! through the link's second moments with its inertia about the COM held
+//! (a note says so), unless that fit is unidentifiable, implausible or
+//! rejected; then the candidate fits the
 //! first moment h = m*c alone (the mass held as modelled, the inertia about
 //! the COM as modelled) and reports `first_moment` (kg m, with 95% CIs),
 //! `mass` and `com` as `null` and a note saying why; `--apply` then keeps
