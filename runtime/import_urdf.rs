@@ -254,6 +254,7 @@ pub fn import_urdf(
         .collect::<Result<Vec<_>, _>>()?;
     attach_payloads(&tree, &chain, &options.attach, &mut links, &mut joints)?;
     let name = options.name.clone().unwrap_or_else(|| robot.name.clone());
+    check_names(&name, options.name.is_some(), &links, &joints)?;
     let header = header(source_label, &robot.name, &tree, &chain, options);
     let body = render(&name, gravity, &links, &joints);
     Ok(Imported {
@@ -1077,6 +1078,36 @@ fn payload_body(a: &Attachment) -> Result<Body, ImportError> {
     })
 }
 
+/// Refuses names a description would refuse (control characters, such as
+/// a newline written `&#10;` in the URDF), naming the element to rename.
+fn check_names(
+    name: &str,
+    from_option: bool,
+    links: &[LinkOut],
+    joints: &[JointOut],
+) -> Result<(), ImportError> {
+    let invalid = |element: String, message: String| ImportError::Invalid { element, message };
+    codegen::description::check_name(name).map_err(|m| {
+        if from_option {
+            invalid("--name".into(), m)
+        } else {
+            invalid(
+                "<robot name>".into(),
+                format!("{m}; pass --name to choose another"),
+            )
+        }
+    })?;
+    for link in links {
+        codegen::description::check_name(&link.name)
+            .map_err(|m| invalid(format!("<link name={:?}>", link.name), m))?;
+    }
+    for joint in joints {
+        codegen::description::check_name(&joint.name)
+            .map_err(|m| invalid(format!("<joint name={:?}>", joint.name), m))?;
+    }
+    Ok(())
+}
+
 fn unique_name(wanted: &str, taken: &mut HashSet<String>) -> String {
     let name = std::iter::once(wanted.to_string())
         .chain((2..).map(|n| format!("{wanted}_{n}")))
@@ -1093,22 +1124,29 @@ fn header(
     chain: &Selection,
     options: &ImportOptions,
 ) -> String {
+    // Every name is written escaped ({:?}): a comment line cannot be ended
+    // by the URDF's text.
     let mut flags = vec![
-        format!("--base {}", tree.link_name(chain.base)),
-        format!("--tip {}", tree.link_name(chain.tip)),
+        format!("--base {:?}", tree.link_name(chain.base)),
+        format!("--tip {:?}", tree.link_name(chain.tip)),
     ];
     flags.extend(
         options
             .lock
             .iter()
-            .map(|(j, a)| format!("--lock {j}={a:?}")),
+            .map(|(j, a)| format!("--lock {:?}", format!("{j}={a:?}"))),
     );
-    flags.extend(options.attach.iter().map(|a| format!("--attach '{a}'")));
+    flags.extend(
+        options
+            .attach
+            .iter()
+            .map(|a| format!("--attach {:?}", a.to_string())),
+    );
     if let Some(name) = &options.name {
-        flags.push(format!("--name '{name}'"));
+        flags.push(format!("--name {name:?}"));
     }
     format!(
-        "# Imported by `sdnn import-urdf` from {source}\n# URDF robot '{robot}', options: {}\n",
+        "# Imported by `sdnn import-urdf` from {source:?}\n# URDF robot {robot:?}, options: {}\n",
         flags.join(" ")
     )
 }
@@ -1616,11 +1654,9 @@ mod tests {
         let label = "../shared/reference/gen3_lite/GEN3-LITE.urdf";
         let imported = import_urdf(&urdf, label, &ImportOptions::default()).expect("import");
         assert!(imported.warnings.is_empty(), "{:?}", imported.warnings);
-        assert!(
-            imported
-                .toml
-                .starts_with(&format!("# Imported by `sdnn import-urdf` from {label}\n"))
-        );
+        assert!(imported.toml.starts_with(&format!(
+            "# Imported by `sdnn import-urdf` from {label:?}\n"
+        )));
         let d = parse(&imported.toml);
         assert_eq!(d.dof(), 6);
         assert_eq!(d.links.len(), 8);

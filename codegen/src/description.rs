@@ -315,11 +315,16 @@ impl Description {
                 "gravity must be finite numbers",
             ));
         }
+        validate_name(&self.robot, KeyPath::root().key("name"))?;
         for (i, link) in self.links.iter().enumerate() {
-            validate_link(link, KeyPath::root().key("links").index(i))?;
+            let at = KeyPath::root().key("links").index(i);
+            validate_name(&link.name, at.key("name"))?;
+            validate_link(link, at)?;
         }
         for (i, joint) in self.joints.iter().enumerate() {
-            validate_joint(joint, KeyPath::root().key("joints").index(i))?;
+            let at = KeyPath::root().key("joints").index(i);
+            validate_name(&joint.name, at.key("name"))?;
+            validate_joint(joint, at)?;
         }
         self.validate_topology()
     }
@@ -428,6 +433,33 @@ impl Description {
     pub fn link(&self, name: &str) -> Option<&Link> {
         self.links.iter().find(|l| l.name == name)
     }
+}
+
+/// Longest robot, link or joint name accepted, in characters.
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// Names are data shown in generated comments, reports and files: one line
+/// of printable text. Control characters (a newline could end a comment in
+/// generated code) are refused, not escaped, so every output shows the name
+/// as written.
+pub fn check_name(name: &str) -> Result<(), String> {
+    if let Some(c) = name.chars().find(|c| c.is_control()) {
+        return Err(format!(
+            "name {name:?} contains the control character U+{:04X}; names must be one line of printable text",
+            u32::from(c)
+        ));
+    }
+    if name.chars().count() > MAX_NAME_CHARS {
+        return Err(format!(
+            "name is {} characters long; at most {MAX_NAME_CHARS} are accepted",
+            name.chars().count()
+        ));
+    }
+    Ok(())
+}
+
+fn validate_name(name: &str, at: KeyPath) -> Result<(), Located> {
+    check_name(name).map_err(|message| Located::new(at, message))
 }
 
 fn validate_link(link: &Link, at: KeyPath) -> Result<(), Located> {

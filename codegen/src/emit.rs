@@ -97,7 +97,12 @@ impl Function<'_> {
         };
         let prologue = self.prologue(&used);
         let (lets, names) = self.intermediates();
-        let values: Vec<TokenStream> = self.roots.iter().map(|&r| self.expr(r, &names)).collect();
+        let printer = self.printer();
+        let values: Vec<TokenStream> = self
+            .roots
+            .iter()
+            .map(|&r| printer.expr(r, &names))
+            .collect();
         let result = match self.shape {
             Shape::Vector(_) => quote! { [#(#values),*] },
             Shape::Matrix(_, cols) => {
@@ -117,6 +122,13 @@ impl Function<'_> {
         }
     }
 
+    fn printer(&self) -> Printer<'_> {
+        Printer {
+            dag: self.dag,
+            inputs: self.inputs,
+        }
+    }
+
     fn used_inputs(&self) -> Vec<Input> {
         let mut used = vec![false; self.inputs.len()];
         let mut seen = vec![false; self.dag.nodes.len()];
@@ -129,7 +141,7 @@ impl Function<'_> {
                 Node::Input(i) => used[*i] = true,
                 Node::Add(ops) | Node::Mul(ops) => stack.extend(ops),
                 Node::Neg(x) => stack.push(*x),
-                Node::Const(_) => {}
+                Node::Const(_) | Node::Param(_) => {}
             }
         }
         self.inputs
@@ -193,8 +205,9 @@ impl Function<'_> {
                 self.dag.nodes[id],
                 Node::Add(_) | Node::Mul(_) | Node::Neg(_)
             );
-            if shared && compound {
-                let expr = self.expr(id, &names);
+            // Constants are folded by the compiler wherever they appear.
+            if shared && compound && !self.dag.is_constant(id) {
+                let expr = self.printer().expr(id, &names);
                 let name = format_ident!("t{}", names.len());
                 lets.push(quote! { let #name = #expr; });
                 names.insert(id, name);
@@ -255,14 +268,37 @@ impl Function<'_> {
         }
         order
     }
+}
 
+/// Prints expressions of a DAG: inputs by name, named constants by name,
+/// shared intermediates by their `let` names, constant subexpressions in
+/// plain arithmetic (the compiler folds them).
+pub struct Printer<'a> {
+    pub dag: &'a Dag,
+    pub inputs: &'a [Input],
+}
+
+impl Printer<'_> {
     fn expr(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> TokenStream {
         if let Some(name) = names.get(&id) {
             return quote! { #name };
         }
+        if let Some(name) = self.dag.derived_name(id) {
+            let ident = format_ident!("{name}");
+            return quote! { #ident };
+        }
+        self.definition(id, names)
+    }
+
+    /// The expression of `id` itself, even where it has a name.
+    pub fn definition(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> TokenStream {
         match &self.dag.nodes[id] {
             Node::Input(i) => {
                 let ident = self.inputs[*i].ident();
+                quote! { #ident }
+            }
+            Node::Param(p) => {
+                let ident = format_ident!("{}", self.dag.params[*p].name);
                 quote! { #ident }
             }
             Node::Const(c) => literal(*c),
@@ -275,9 +311,17 @@ impl Function<'_> {
         }
     }
 
+    /// Whether `id` prints as a bare identifier.
+    fn is_name(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> bool {
+        names.contains_key(&id)
+            || self.dag.derived_name(id).is_some()
+            || matches!(self.dag.nodes[id], Node::Input(_) | Node::Param(_))
+    }
+
     /// `a + b * c - d * e` as `a.add_mul(b, c).sub_mul(d, e)`: each product
     /// term is a fused multiply-add where the target has FMA (see the
     /// generated `AddMul`), read left to right like the sum it is.
+    /// Constant terms never fuse, so the compiler folds their products.
     fn sum(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> TokenStream {
         let terms = self.ordered_terms(ops, names);
         let mut tokens = self.expr(terms[0], names);
@@ -318,23 +362,31 @@ impl Function<'_> {
     /// wrench) last, off the chain of the others.
     fn ordered_terms(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> Vec<NodeId> {
         let mut terms = Vec::new();
-        self.splice_terms(ops, names, &mut terms);
-        if let Some(at) = terms
-            .iter()
-            .position(|&t| matches!(self.dag.nodes[t], Node::Const(_)))
-        {
+        let constant = ops.iter().all(|&op| self.dag.is_constant(op));
+        self.splice_terms(ops, names, constant, &mut terms);
+        let all_constant = terms.iter().all(|&t| self.dag.is_constant(t));
+        if !all_constant && let Some(at) = terms.iter().position(|&t| self.dag.is_constant(t)) {
             let constant = terms.remove(at);
             terms.insert(0, constant);
         }
         terms
     }
 
-    /// The terms of a sum, unnamed inner sums replaced by their terms.
-    fn splice_terms(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>, out: &mut Vec<NodeId>) {
+    /// The terms of a sum, unnamed inner sums replaced by their terms; a
+    /// constant inner sum stays whole, so it folds.
+    fn splice_terms(
+        &self,
+        ops: &[NodeId],
+        names: &HashMap<NodeId, Ident>,
+        constant: bool,
+        out: &mut Vec<NodeId>,
+    ) {
         for &op in ops {
             match &self.dag.nodes[op] {
-                Node::Add(inner) if !names.contains_key(&op) => {
-                    self.splice_terms(inner, names, out)
+                Node::Add(inner)
+                    if !self.is_name(op, names) && (constant || !self.dag.is_constant(op)) =>
+                {
+                    self.splice_terms(inner, names, constant, out)
                 }
                 _ => out.push(op),
             }
@@ -343,9 +395,8 @@ impl Function<'_> {
 
     /// Whether the expression of `id` is a name or ends in a method call.
     fn is_postfix(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> bool {
-        names.contains_key(&id)
+        self.is_name(id, names)
             || match &self.dag.nodes[id] {
-                Node::Input(_) => true,
                 Node::Add(ops) => {
                     let terms = self.ordered_terms(ops, names);
                     terms.len() > 1 && self.fuses(terms[terms.len() - 1], names)
@@ -354,9 +405,11 @@ impl Function<'_> {
             }
     }
 
-    /// Whether `id`, as a sum's term, is an unnamed `±(a * b)` that fuses.
+    /// Whether `id`, as a sum's term, is an unnamed run-time `±(a * b)`
+    /// that fuses.
     fn fuses(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> bool {
-        !names.contains_key(&id)
+        !self.is_name(id, names)
+            && !self.dag.is_constant(id)
             && match &self.dag.nodes[id] {
                 Node::Mul(_) => true,
                 Node::Neg(x) => self.fuses(*x, names),
@@ -364,9 +417,29 @@ impl Function<'_> {
             }
     }
 
+    /// The magnitude of a leading factor that reads best subtracted: a
+    /// negative literal or the negation of a constant; as a factor, or
+    /// `alone` (a whole argument, no parentheses needed).
+    fn negative_lead(
+        &self,
+        id: NodeId,
+        names: &HashMap<NodeId, Ident>,
+        alone: bool,
+    ) -> Option<TokenStream> {
+        if self.is_name(id, names) {
+            return None;
+        }
+        match self.dag.nodes[id] {
+            Node::Const(c) if c < 0.0 => Some(literal(-c)),
+            Node::Neg(x) if self.dag.is_constant(x) && alone => Some(self.expr(x, names)),
+            Node::Neg(x) if self.dag.is_constant(x) => Some(self.factor(x, names)),
+            _ => None,
+        }
+    }
+
     /// A sum's term `±(a * b)` that fuses into the sum: whether it is
-    /// subtracted, then `a` (all factors but the last, a leading constant
-    /// by magnitude) and `b`.
+    /// subtracted, then `a` (all factors but the last, a leading negative
+    /// constant by magnitude) and `b`.
     fn product_term(
         &self,
         id: NodeId,
@@ -382,12 +455,10 @@ impl Function<'_> {
             Node::Mul(ops) => {
                 let (last, head) = ops.split_last()?;
                 let b = self.expr(*last, names);
-                let (subtract, a) = match self.dag.nodes[head[0]] {
-                    Node::Const(c) if !names.contains_key(&head[0]) => {
-                        (c < 0.0, self.times(literal(c.abs()), &head[1..], names))
-                    }
-                    _ if head.len() == 1 => (false, self.expr(head[0], names)),
-                    _ => (false, self.product(head, names)),
+                let (subtract, a) = match self.negative_lead(head[0], names, head.len() == 1) {
+                    Some(magnitude) => (true, self.times(magnitude, &head[1..], names)),
+                    None if head.len() == 1 => (false, self.expr(head[0], names)),
+                    None => (false, self.product(head, names)),
                 };
                 Some((subtract, a, b))
             }
@@ -395,7 +466,7 @@ impl Function<'_> {
         }
     }
 
-    /// `a * b * c`, a leading constant first and unparenthesized.
+    /// `a * b * c`, a leading literal or name first and unparenthesized.
     fn product(&self, ops: &[NodeId], names: &HashMap<NodeId, Ident>) -> TokenStream {
         let lead = match self.dag.nodes[ops[0]] {
             Node::Const(c) if !names.contains_key(&ops[0]) => literal(c),
@@ -420,33 +491,30 @@ impl Function<'_> {
     /// For a term that reads best subtracted (`-x`, `-k * x`, `-k`), the
     /// tokens of its magnitude.
     fn negated(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> Option<TokenStream> {
-        if names.contains_key(&id) {
+        if self.is_name(id, names) {
             return None;
         }
         match &self.dag.nodes[id] {
             Node::Neg(x) => Some(self.factor(*x, names)),
             Node::Const(c) if *c < 0.0 => Some(literal(-c)),
-            Node::Mul(ops) => match self.dag.nodes[ops[0]] {
-                Node::Const(c) if c < 0.0 && !names.contains_key(&ops[0]) => {
-                    Some(self.times(literal(-c), &ops[1..], names))
-                }
-                _ => None,
-            },
+            Node::Mul(ops) => self
+                .negative_lead(ops[0], names, false)
+                .map(|magnitude| self.times(magnitude, &ops[1..], names)),
             _ => None,
         }
     }
 
     /// An operand of `*`, `-` or unary `-`: sums, negations and negative
-    /// literals in parentheses.
+    /// leads in parentheses.
     fn factor(&self, id: NodeId, names: &HashMap<NodeId, Ident>) -> TokenStream {
         let inner = self.expr(id, names);
-        let needs_parens = !names.contains_key(&id)
+        let needs_parens = !self.is_name(id, names)
             && match &self.dag.nodes[id] {
                 Node::Add(_) => !self.is_postfix(id, names),
                 Node::Neg(_) => true,
                 Node::Const(c) => *c < 0.0,
-                Node::Mul(ops) => matches!(self.dag.nodes[ops[0]], Node::Const(c) if c < 0.0),
-                Node::Input(_) => false,
+                Node::Mul(ops) => self.negative_lead(ops[0], names, false).is_some(),
+                Node::Input(_) | Node::Param(_) => false,
             };
         if needs_parens {
             quote! { (#inner) }
@@ -515,9 +583,10 @@ mod tests {
         let mut dag = Dag::default();
         let x: Vec<NodeId> = (0..4).map(|i| dag.input(i)).collect();
         let k = dag.constant(-2.5);
-        let scaled = dag.mul(vec![k, x[1]]);
-        let product = dag.mul(vec![x[2], x[3]]);
-        let root = dag.add(vec![x[0], scaled, product]);
+        let scaled = dag.product2(k, x[1]);
+        let partial = dag.sum2(x[0], scaled);
+        let product = dag.product2(x[2], x[3]);
+        let root = dag.sum2(partial, product);
         let code = emitted(&dag, root);
         assert!(
             code.contains("qd1 . sub_mul (2.5 , qd2) . add_mul (qd3 , qd4)"),
@@ -529,13 +598,13 @@ mod tests {
     fn a_leading_product_is_a_plain_multiply_and_a_constant_gets_a_type() {
         let mut dag = Dag::default();
         let x: Vec<NodeId> = (0..4).map(|i| dag.input(i)).collect();
-        let first = dag.mul(vec![x[0], x[1]]);
-        let second = dag.mul(vec![x[2], x[3]]);
-        let root = dag.add(vec![first, second]);
+        let first = dag.product2(x[0], x[1]);
+        let second = dag.product2(x[2], x[3]);
+        let root = dag.sum2(first, second);
         let code = emitted(&dag, root);
         assert!(code.contains("(qd1 * qd2) . add_mul (qd3 , qd4)"), "{code}");
         let one = dag.constant(1.0);
-        let root = dag.add(vec![one, second]);
+        let root = dag.sum2(one, second);
         let code = emitted(&dag, root);
         assert!(code.contains("1.0f64 . add_mul (qd3 , qd4)"), "{code}");
     }

@@ -6,18 +6,12 @@
 
 use sha2::{Digest, Sha256};
 
-/// The generator's sources: any change to them changes every fingerprint,
-/// so output produced by an older generator is never taken as fresh.
-const GENERATOR_SOURCES: [&str; 8] = [
-    include_str!("description.rs"),
-    include_str!("reduce.rs"),
-    include_str!("fingerprint.rs"),
-    include_str!("lagrangian.rs"),
-    include_str!("program.rs"),
-    include_str!("recursive.rs"),
-    include_str!("emit.rs"),
-    include_str!("generate.rs"),
-];
+/// The generator's sources (every file under `src/`, found by the build
+/// script, and `Cargo.toml`, which pins Symbolica's version), by path: any
+/// change to them changes every fingerprint, so output produced by an
+/// older generator is never taken as fresh.
+const GENERATOR_SOURCES: &[(&str, &str)] =
+    include!(concat!(env!("OUT_DIR"), "/generator_sources.rs"));
 
 /// Marker of the header line that carries the fingerprint.
 pub const FINGERPRINT_PREFIX: &str = "// fingerprint: ";
@@ -25,7 +19,9 @@ pub const FINGERPRINT_PREFIX: &str = "// fingerprint: ";
 /// The generator's version: crate version plus a hash of its sources.
 pub fn generator_version() -> String {
     let mut hasher = Sha256::new();
-    for source in GENERATOR_SOURCES {
+    for (path, source) in GENERATOR_SOURCES {
+        hasher.update(path.as_bytes());
+        hasher.update([0]);
         hasher.update(normalize_newlines(source).as_bytes());
         hasher.update([0]);
     }
@@ -75,6 +71,34 @@ mod tests {
     fn fingerprint_ignores_line_endings_but_not_content() {
         assert_eq!(fingerprint("a = 1\n"), fingerprint("a = 1\r\n"));
         assert_ne!(fingerprint("a = 1\n"), fingerprint("a = 2\n"));
+    }
+
+    #[test]
+    fn every_generator_source_is_covered() {
+        let paths: Vec<&str> = GENERATOR_SOURCES.iter().map(|(p, _)| *p).collect();
+        for required in [
+            "Cargo.toml",
+            "src/support.rs",
+            "src/emit.rs",
+            "src/recursive/mod.rs",
+        ] {
+            assert!(
+                paths.contains(&required),
+                "{required} missing from {paths:?}"
+            );
+        }
+        let on_disk = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/src"))
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .path()
+                    .extension()
+                    .is_some_and(|x| x == "rs")
+            })
+            .count();
+        let top_level = paths.iter().filter(|p| p.matches('/').count() == 1).count();
+        assert_eq!(top_level, on_disk);
     }
 
     #[test]

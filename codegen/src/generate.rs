@@ -1,58 +1,51 @@
 //! From a validated description to the text of its generated Rust file.
 //!
-//! `generate` is pure: it returns the file contents. Symbolica derives the
-//! rigid-body torque polynomials (`lagrangian.rs`); everything after that
-//! (mass matrix, gravity, Coriolis, regressor, joint effects) is read off those
-//! polynomials, turned into shared-subexpression programs and emitted.
+//! `generate` is pure: it returns the file contents. The structured programs
+//! (`recursive.rs`) over the description's named constants are emitted;
+//! for chains of up to `LAGRANGIAN_MAX_DOF` joints, Symbolica's expanded
+//! Lagrangian (`lagrangian.rs`) is derived too and the programs must agree
+//! with it (`crosscheck.rs`) or generation fails.
 
 use std::time::Instant;
 
 use proc_macro2::TokenStream;
 use quote::quote;
 
+use crate::crosscheck;
 use crate::description::Description;
-use crate::emit::{Argument, Function, Input, Shape, int, literal};
+use crate::emit::{Argument, Function, Shape};
 use crate::fingerprint::{FINGERPRINT_PREFIX, fingerprint, generator_version};
-use crate::lagrangian::{self, RigidBodyTorque};
-use crate::program::{Dag, NodeId, Poly};
+use crate::lagrangian;
+use crate::listing;
+use crate::program::NodeId;
 use crate::recursive::{self, Traced};
-use crate::reduce::Chain;
 use crate::support;
 
-/// Names of the ten inertial parameters of body i, Pinocchio's order.
-pub const INERTIAL_NAMES: [&str; 10] = [
-    "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
-];
-/// Chains up to this many joints also get the expanded Lagrangian, and each
-/// function keeps whichever form needs fewer operations. Beyond it the
-/// expansion swells (terms grow roughly tenfold per joint) and only the
-/// structured form (`recursive.rs`) is derived.
+/// Chains up to this many joints are also derived by the expanded
+/// Lagrangian and cross-checked. Beyond it the expansion swells (terms grow
+/// roughly tenfold per joint) and the recursive form is checked by tests.
 pub const LAGRANGIAN_MAX_DOF: usize = 4;
-/// Names of the joint-effect parameters of joint i.
-pub const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
 
 /// A generated model file and what it cost.
 #[derive(Debug, Clone)]
 pub struct Generated {
     pub name: String,
     pub code: String,
-    /// Arithmetic operations per generated function, in emission order.
+    /// Run-time arithmetic operations per generated function, in emission order.
     pub operations: Vec<Cost>,
     pub seconds: f64,
 }
 
-/// What one generated function costs and which form was kept.
+/// What one generated function costs at run time.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Cost {
     pub function: String,
     pub operations: usize,
-    /// "expanded" (Lagrangian polynomials) or "structured" (`recursive.rs`).
-    pub form: &'static str,
 }
 
 impl std::fmt::Display for Cost {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} {} ({})", self.function, self.operations, self.form)
+        write!(f, "{} {}", self.function, self.operations)
     }
 }
 
@@ -65,24 +58,35 @@ pub fn generate(
 ) -> Result<Generated, String> {
     let start = Instant::now();
     let chain = description.chain().clone();
-    let rigid = if chain.bodies.len() <= LAGRANGIAN_MAX_DOF {
-        Some(crate::session::run(move || lagrangian::derive(&chain))??)
-    } else {
-        None
-    };
-    let model = Model::new(description, rigid);
+    let traced = recursive::trace(&chain);
+    let checked = chain.bodies.len() <= LAGRANGIAN_MAX_DOF;
+    if checked {
+        let derived = chain.clone();
+        let rigid = crate::session::run(move || lagrangian::derive(&derived))??;
+        crosscheck::against_lagrangian(&traced, &rigid, &chain)?;
+    }
+    let dof = chain.bodies.len();
+    let inputs = lagrangian::inputs(dof);
     let mut operations = Vec::new();
     let mut items = Vec::new();
-    for spec in model.functions() {
-        let (tokens, ops, form) = spec.emit(&model.inputs, &model.traced.dag);
+    for spec in functions(&traced, dof) {
         operations.push(Cost {
             function: spec.name.to_string(),
-            operations: ops,
-            form,
+            operations: traced.dag.negation_aware_count(&spec.roots),
         });
-        items.push(tokens);
+        let function = Function {
+            name: spec.name,
+            doc: spec.doc,
+            arguments: spec.arguments,
+            dof,
+            inputs: &inputs,
+            dag: &traced.dag,
+            roots: &spec.roots,
+            shape: spec.shape,
+        };
+        items.push(function.tokens());
     }
-    let constants = model.constants();
+    let constants = listing::constants(description, &traced, &inputs);
     let support = support::items();
     let file: TokenStream = quote! {
         #constants
@@ -92,7 +96,7 @@ pub fn generate(
     let syntax = syn::parse2::<syn::File>(file)
         .map_err(|e| format!("generated code does not parse: {e}"))?;
     let body = prettyplease::unparse(&syntax);
-    let header = header(description, toml_source, source_label, &operations);
+    let header = header(description, toml_source, source_label, &operations, checked);
     Ok(Generated {
         name: description.name.clone(),
         code: format!("{header}{body}"),
@@ -101,393 +105,100 @@ pub fn generate(
     })
 }
 
+/// The file's opening comment. Names from the description appear escaped
+/// (Rust string syntax), so no character of theirs can end the comment.
 fn header(
     description: &Description,
     toml_source: &str,
     source_label: &str,
     operations: &[Cost],
+    checked: bool,
 ) -> String {
     let ops: Vec<String> = operations.iter().map(Cost::to_string).collect();
+    let joints: Vec<String> = description
+        .chain()
+        .bodies
+        .iter()
+        .map(|b| format!("{:?}", b.joint))
+        .collect();
+    let check = if checked {
+        "equal to Symbolica's expanded Lagrangian at generation (tau and regressor)"
+    } else {
+        "checked against a numeric Newton-Euler by the tests"
+    };
     format!(
-        "// This file is @generated by sdnn-codegen {version} from {source_label}. Do not edit.\n\
+        "// This file is @generated by sdnn-codegen {version} from {label:?}. Do not edit.\n\
          {FINGERPRINT_PREFIX}{fp} (sha256 of the TOML text and the generator)\n\
          // Refresh: `cargo build` regenerates it when the TOML or the generator changes,\n\
-         // or run `cargo run -p sdnn-codegen -- {source_label}`.\n\
-         // Robot: {robot}; {dof} moving joints ({joints}).\n\
-         // Arithmetic operations: {ops}.\n\
+         // or run `cargo run -p sdnn-codegen -- {label}`.\n\
+         // Robot: {robot:?}; {dof} moving joints ({joints}).\n\
+         // Run-time arithmetic operations: {ops}; {check}.\n\
          // tau = M(q) qdd + c(q, qd) + g(q) + effects(qd); M includes armature.\n\n",
         version = generator_version(),
+        label = source_label,
         fp = fingerprint(toml_source),
         robot = description.robot,
         dof = description.dof(),
-        joints = description
-            .chain()
-            .bodies
-            .iter()
-            .map(|b| b.joint.as_str())
-            .collect::<Vec<_>>()
-            .join(", "),
+        joints = joints.join(", "),
         ops = ops.join(", "),
     )
 }
 
-/// The polynomials of every generated function.
-struct Model {
-    dof: usize,
-    inputs: Vec<Input>,
-    chain: Chain,
-    /// The expanded Lagrangian's rigid-body torque with the description's
-    /// numeric parameters, and its regressor columns `[joint][parameter]`
-    /// (small chains only).
-    expanded: Option<Expanded>,
-    /// The structured programs of every function.
-    traced: Traced,
-}
-
-struct Expanded {
-    tau_rigid: Vec<Poly>,
-    regressor_rigid: Vec<Vec<Poly>>,
-}
-
 /// One function to emit.
-struct Spec<'a> {
-    name: &'a str,
-    doc: String,
-    arguments: &'a [Argument],
+struct Spec {
+    name: &'static str,
+    doc: &'static str,
+    arguments: &'static [Argument],
     shape: Shape,
-    /// The outputs as polynomials (expanded form), if derived.
-    polynomials: Option<Vec<Poly>>,
-    /// The outputs' roots in the structured programs, if traced.
-    traced: Option<Vec<NodeId>>,
+    roots: Vec<NodeId>,
 }
 
-impl Spec<'_> {
-    /// Emits the cheapest available form: its tokens, operation count and name.
-    fn emit(&self, inputs: &[Input], traced_dag: &Dag) -> (TokenStream, usize, &'static str) {
-        let expanded = self.polynomials.as_ref().map(|p| horner(p, inputs));
-        let structured = self
-            .traced
-            .as_ref()
-            .map(|roots| (roots, traced_dag.negation_aware_count(roots)));
-        let (dag, roots, ops, form) = match (&expanded, structured) {
-            (Some((dag, roots, ops)), Some((_, traced_ops))) if *ops <= traced_ops => {
-                (dag, roots, *ops, "expanded")
-            }
-            (_, Some((roots, ops))) => (traced_dag, roots, ops, "structured"),
-            (Some((dag, roots, ops)), None) => (dag, roots, *ops, "expanded"),
-            (None, None) => unreachable!("every function has a form"),
-        };
-        let function = Function {
-            name: self.name,
-            doc: &self.doc,
-            arguments: self.arguments,
-            dof: inputs.len() / 5,
-            inputs,
-            dag,
-            roots,
-            shape: self.shape,
-        };
-        (function.tokens(), ops, form)
-    }
-}
-
-/// Polynomials as a shared-subexpression program: two factoring orders, the
-/// cheaper kept.
-fn horner(outputs: &[Poly], inputs: &[Input]) -> (Dag, Vec<NodeId>, usize) {
-    let pairs = trig_pairs(inputs);
-    let reduced: Vec<Poly> = outputs.iter().map(|p| p.reduce_trig(&pairs)).collect();
-    let greedy = vec![0; inputs.len()];
-    let motion_first: Vec<u8> = inputs
-        .iter()
-        .map(|i| u8::from(!matches!(i, Input::Sin(_) | Input::Cos(_))))
-        .collect();
-    [greedy, motion_first]
-        .iter()
-        .map(|priority| {
-            let mut dag = Dag::default();
-            let roots: Vec<NodeId> = reduced.iter().map(|p| dag.horner(p, priority)).collect();
-            let ops = dag.negation_aware_count(&roots);
-            (dag, roots, ops)
-        })
-        .min_by_key(|(_, _, ops)| *ops)
-        .expect("two candidates")
-}
-
-fn trig_pairs(inputs: &[Input]) -> Vec<(usize, usize)> {
-    let position = |wanted: Input| inputs.iter().position(|&i| i == wanted);
-    inputs
-        .iter()
-        .filter_map(|&input| match input {
-            Input::Sin(j) => Some((position(Input::Sin(j))?, position(Input::Cos(j))?)),
-            _ => None,
-        })
-        .collect()
-}
-
-impl Model {
-    fn new(description: &Description, rigid: Option<RigidBodyTorque>) -> Model {
-        let chain = description.chain().clone();
-        let dof = chain.bodies.len();
-        let parameters: Vec<f64> = chain
-            .bodies
-            .iter()
-            .flat_map(|b| b.inertial.standard_parameters())
-            .collect();
-        let expanded = rigid.map(|rigid| Expanded {
-            tau_rigid: rigid
-                .regressor
-                .iter()
-                .map(|row| {
-                    let scaled = row.iter().zip(&parameters).flat_map(|(column, &p)| {
-                        column.terms().iter().map(move |(e, c)| (e.clone(), c * p))
-                    });
-                    Poly::from_terms(scaled.collect::<Vec<_>>())
-                })
-                .collect(),
-            regressor_rigid: rigid.regressor,
-        });
-        Model {
-            dof,
-            inputs: lagrangian::inputs(dof),
-            traced: recursive::trace(&chain),
-            chain,
-            expanded,
-        }
-    }
-
-    fn position(&self, input: Input) -> usize {
-        self.inputs.iter().position(|&i| i == input).unwrap_or(0)
-    }
-
-    fn variable(&self, input: Input, coefficient: f64) -> Poly {
-        let mut exponents = vec![0; self.inputs.len()];
-        exponents[self.position(input)] = 1;
-        Poly::from_terms([(exponents, coefficient)])
-    }
-
-    fn constant(&self, value: f64) -> Poly {
-        Poly::from_terms([(vec![0; self.inputs.len()], value)])
-    }
-
-    /// Terms of `p` whose qd and qdd degrees satisfy the filter.
-    fn select(&self, p: &Poly, keep: impl Fn(u32, u32) -> bool) -> Poly {
-        let qd: Vec<usize> = (0..self.dof).map(|i| self.position(Input::Qd(i))).collect();
-        let qdd: Vec<usize> = (0..self.dof)
-            .map(|i| self.position(Input::Qdd(i)))
-            .collect();
-        let degree = |e: &[u32], idx: &[usize]| idx.iter().map(|&k| e[k]).sum::<u32>();
-        Poly::from_terms(
-            p.terms()
-                .iter()
-                .filter(|(e, _)| keep(degree(e, &qd), degree(e, &qdd)))
-                .cloned()
-                .collect::<Vec<_>>(),
-        )
-    }
-
-    /// d p / d qdd_j for p linear in qdd.
-    fn qdd_coefficient(&self, p: &Poly, j: usize) -> Poly {
-        let k = self.position(Input::Qdd(j));
-        Poly::from_terms(
-            p.terms()
-                .iter()
-                .filter(|(e, _)| e[k] == 1)
-                .map(|(e, c)| {
-                    let mut e = e.clone();
-                    e[k] = 0;
-                    (e, *c)
-                })
-                .collect::<Vec<_>>(),
-        )
-    }
-
-    fn effects(&self, i: usize, with_armature: bool) -> Poly {
-        let e = self.chain.bodies[i].effects;
-        let mut terms = Vec::new();
-        for (input, value) in [
-            (Input::Qd(i), e.viscous),
-            (Input::Sign(i), e.coulomb),
-            (Input::Qdd(i), if with_armature { e.armature } else { 0.0 }),
-        ] {
-            terms.extend(self.variable(input, value).terms().to_vec());
-        }
-        terms.extend(self.constant(e.offset).terms().to_vec());
-        Poly::from_terms(terms)
-    }
-
-    fn sum(a: &Poly, b: &Poly) -> Poly {
-        Poly::from_terms(
-            a.terms()
-                .iter()
-                .chain(b.terms())
-                .cloned()
-                .collect::<Vec<_>>(),
-        )
-    }
-
-    fn functions(&self) -> Vec<Spec<'static>> {
-        let n = self.dof;
-        let expanded = self.expanded.as_ref().map(|x| self.expanded_functions(x));
-        let [tau, mass, gravity, coriolis, regressor] = match expanded {
-            Some(polynomials) => polynomials.map(Some),
-            None => [None, None, None, None, None],
-        };
-        let traced = &self.traced;
-        let effects = (0..n).map(|i| self.effects(i, false)).collect();
-        vec![
-            Spec {
-                name: "tau",
-                doc: " Joint torques tau = M(q) qdd + c(q, qd) + g(q) + effects(qd), N m.".into(),
-                arguments: &[Argument::Q, Argument::Qd, Argument::Qdd],
-                shape: Shape::Vector(n),
-                polynomials: tau,
-                traced: Some(traced.tau.clone()),
-            },
-            Spec {
-                name: "mass_matrix",
-                doc: " Joint-space inertia matrix M(q), armature on the diagonal, kg m^2.".into(),
-                arguments: &[Argument::Q],
-                shape: Shape::Matrix(n, n),
-                polynomials: mass,
-                traced: Some(traced.mass_matrix.clone()),
-            },
-            Spec {
-                name: "gravity",
-                doc: " Generalized gravity g(q) = dU/dq, N m.".into(),
-                arguments: &[Argument::Q],
-                shape: Shape::Vector(n),
-                polynomials: gravity,
-                traced: Some(traced.gravity.clone()),
-            },
-            Spec {
-                name: "coriolis",
-                doc: " Coriolis and centrifugal torques c(q, qd), N m.".into(),
-                arguments: &[Argument::Q, Argument::Qd],
-                shape: Shape::Vector(n),
-                polynomials: coriolis,
-                traced: Some(traced.coriolis.clone()),
-            },
-            Spec {
-                name: "effects",
-                doc:
-                    " Joint effects without armature: viscous*qd + coulomb*sign(qd) + offset, N m."
-                        .into(),
-                arguments: &[Argument::Qd],
-                shape: Shape::Vector(n),
-                polynomials: Some(effects),
-                traced: None,
-            },
-            Spec {
-                name: "regressor",
-                doc: " Regressor Y(q, qd, qdd) with tau = Y * PARAMETERS (see PARAMETER_NAMES)."
-                    .into(),
-                arguments: &[Argument::Q, Argument::Qd, Argument::Qdd],
-                shape: Shape::Matrix(n, 14 * n),
-                polynomials: regressor,
-                traced: Some(traced.regressor.clone()),
-            },
-        ]
-    }
-
-    /// tau, M, g, c and the regressor read off the expanded Lagrangian.
-    fn expanded_functions(&self, expanded: &Expanded) -> [Vec<Poly>; 5] {
-        let n = self.dof;
-        let tau_rigid = &expanded.tau_rigid;
-        let tau = (0..n)
-            .map(|i| Model::sum(&tau_rigid[i], &self.effects(i, true)))
-            .collect();
-        let mut mass: Vec<Poly> = Vec::with_capacity(n * n);
-        for i in 0..n {
-            for j in 0..n {
-                // Mirror the upper triangle: M is symmetric bit for bit.
-                let m = if j < i {
-                    mass[j * n + i].clone()
-                } else if i == j {
-                    let armature = self.constant(self.chain.bodies[i].effects.armature);
-                    Model::sum(&self.qdd_coefficient(&tau_rigid[i], j), &armature)
-                } else {
-                    self.qdd_coefficient(&tau_rigid[i], j)
-                };
-                mass.push(m);
-            }
-        }
-        let gravity = tau_rigid
-            .iter()
-            .map(|p| self.select(p, |d, a| d == 0 && a == 0))
-            .collect();
-        let coriolis = tau_rigid
-            .iter()
-            .map(|p| self.select(p, |d, a| d > 0 && a == 0))
-            .collect();
-        let regressor = self.regressor(&expanded.regressor_rigid);
-        [tau, mass, gravity, coriolis, regressor]
-    }
-
-    fn regressor(&self, rigid: &[Vec<Poly>]) -> Vec<Poly> {
-        let n = self.dof;
-        let mut rows = Vec::with_capacity(n * 14 * n);
-        for (i, rigid_row) in rigid.iter().enumerate() {
-            rows.extend(rigid_row.iter().cloned());
-            for j in 0..n {
-                let own = |input, value| {
-                    if i == j {
-                        self.variable(input, value)
-                    } else {
-                        Poly::default()
-                    }
-                };
-                rows.push(own(Input::Qdd(j), 1.0));
-                rows.push(own(Input::Qd(j), 1.0));
-                rows.push(own(Input::Sign(j), 1.0));
-                rows.push(if i == j {
-                    self.constant(1.0)
-                } else {
-                    Poly::default()
-                });
-            }
-        }
-        rows
-    }
-
-    fn constants(&self) -> TokenStream {
-        let n = int(self.dof);
-        let count = int(14 * self.dof);
-        let mut values = Vec::new();
-        let mut names = Vec::new();
-        for (i, body) in self.chain.bodies.iter().enumerate() {
-            for (name, value) in INERTIAL_NAMES
-                .iter()
-                .zip(body.inertial.standard_parameters())
-            {
-                names.push(format!("{name}{}", i + 1));
-                values.push(literal(value));
-            }
-        }
-        for (i, body) in self.chain.bodies.iter().enumerate() {
-            let e = body.effects;
-            for (name, value) in EFFECT_NAMES
-                .iter()
-                .zip([e.armature, e.viscous, e.coulomb, e.offset])
-            {
-                names.push(format!("{name}{}", i + 1));
-                values.push(literal(value));
-            }
-        }
-        let joints = self.chain.bodies.iter().map(|b| b.joint.as_str());
-        quote! {
-            /// Number of moving joints.
-            pub const DOF: usize = #n;
-            /// Number of regressor parameters: 10 inertial per link, 4 effects per joint.
-            pub const NUM_PARAMETERS: usize = #count;
-            /// Names of the moving joints, base first.
-            pub const JOINT_NAMES: [&str; #n] = [#(#joints),*];
-            /// Parameter values of this description, in regressor column order:
-            /// per link m, m*c (x, y, z), inertia about the link origin (xx, xy, yy,
-            /// xz, yz, zz); then per joint armature, viscous, coulomb, offset.
-            #[allow(clippy::excessive_precision)]
-            pub const PARAMETERS: [f64; #count] = [#(#values),*];
-            /// Names of PARAMETERS, suffixed by the 1-based link or joint.
-            pub const PARAMETER_NAMES: [&str; #count] = [#(#names),*];
-        }
-    }
+fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
+    const Q: &[Argument] = &[Argument::Q];
+    const Q_QD: &[Argument] = &[Argument::Q, Argument::Qd];
+    const ALL: &[Argument] = &[Argument::Q, Argument::Qd, Argument::Qdd];
+    vec![
+        Spec {
+            name: "tau",
+            doc: " Joint torques tau = M(q) qdd + c(q, qd) + g(q) + effects(qd), N m.",
+            arguments: ALL,
+            shape: Shape::Vector(n),
+            roots: traced.tau.clone(),
+        },
+        Spec {
+            name: "mass_matrix",
+            doc: " Joint-space inertia matrix M(q), armature on the diagonal, kg m^2.",
+            arguments: Q,
+            shape: Shape::Matrix(n, n),
+            roots: traced.mass_matrix.clone(),
+        },
+        Spec {
+            name: "gravity",
+            doc: " Generalized gravity g(q) = dU/dq, N m.",
+            arguments: Q,
+            shape: Shape::Vector(n),
+            roots: traced.gravity.clone(),
+        },
+        Spec {
+            name: "coriolis",
+            doc: " Coriolis and centrifugal torques c(q, qd), N m.",
+            arguments: Q_QD,
+            shape: Shape::Vector(n),
+            roots: traced.coriolis.clone(),
+        },
+        Spec {
+            name: "effects",
+            doc: " Joint effects without armature: viscous*qd + coulomb*sign(qd) + offset, N m.",
+            arguments: &[Argument::Qd],
+            shape: Shape::Vector(n),
+            roots: traced.effects.clone(),
+        },
+        Spec {
+            name: "regressor",
+            doc: " Regressor Y(q, qd, qdd) with tau = Y * PARAMETERS (see PARAMETER_NAMES).",
+            arguments: ALL,
+            shape: Shape::Matrix(n, 14 * n),
+            roots: traced.regressor.clone(),
+        },
+    ]
 }

@@ -15,11 +15,15 @@ pub mod reduce;
 #[cfg(feature = "symbolic")]
 mod config;
 #[cfg(feature = "symbolic")]
+mod crosscheck;
+#[cfg(feature = "symbolic")]
 mod emit;
 #[cfg(feature = "symbolic")]
 mod generate;
 #[cfg(feature = "symbolic")]
 mod lagrangian;
+#[cfg(feature = "symbolic")]
+mod listing;
 pub mod program;
 pub mod recursive;
 #[cfg(feature = "symbolic")]

@@ -1,9 +1,14 @@
-//! Straight-line programs: polynomials in the generated function's inputs
-//! turned into a shared expression DAG (greedy multivariate Horner scheme,
-//! then common subexpressions computed once).
+//! Straight-line programs: a hash-consed expression DAG over the generated
+//! function's inputs and the description's named constants.
 //!
-//! This part is plain Rust on `f64` coefficients; Symbolica only produces the
-//! polynomials (see `lagrangian.rs`).
+//! Named constants (`Node::Param`) are leaves like the inputs, so a program's
+//! shape depends on which constants are zero, never on their values: editing
+//! a number in the description changes the constant's line, not the code
+//! that uses it. Subexpressions of constants alone are free at run time (the
+//! compiler folds them) and are not counted as operations.
+//!
+//! This part is plain Rust; Symbolica only produces the polynomials of the
+//! cross-check (see `lagrangian.rs`).
 
 use std::collections::HashMap;
 
@@ -34,30 +39,15 @@ impl Poly {
         &self.terms
     }
 
-    pub fn is_zero(&self) -> bool {
-        self.terms.is_empty()
-    }
-
-    /// Rewrites `c^2` as `1 - s^2` for each (sine, cosine) input pair until
-    /// every cosine has degree <= 1: a canonical form modulo s^2 + c^2 = 1
-    /// that merges terms the plain expansion keeps apart.
-    pub fn reduce_trig(&self, pairs: &[(usize, usize)]) -> Poly {
-        let mut pending: Vec<(Vec<u32>, f64)> = self.terms.clone();
-        let mut done = Vec::new();
-        while let Some((exponents, coefficient)) = pending.pop() {
-            match pairs.iter().find(|&&(_, c)| exponents[c] >= 2) {
-                Some(&(s, c)) => {
-                    let mut one = exponents.clone();
-                    one[c] -= 2;
-                    let mut minus_s2 = one.clone();
-                    minus_s2[s] += 2;
-                    pending.push((one, coefficient));
-                    pending.push((minus_s2, -coefficient));
-                }
-                None => done.push((exponents, coefficient)),
-            }
-        }
-        Poly::from_terms(done)
+    /// The value at input values `x`.
+    pub fn evaluate(&self, x: &[f64]) -> f64 {
+        self.terms
+            .iter()
+            .map(|(e, c)| {
+                let monomial: f64 = e.iter().zip(x).map(|(&k, v)| v.powi(k as i32)).product();
+                c * monomial
+            })
+            .sum()
     }
 }
 
@@ -65,7 +55,10 @@ impl Poly {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Node {
     Input(usize),
+    /// A literal: only structural numbers (0, 1, -1, 2, 1/2) and folds of them.
     Const(f64),
+    /// A named constant of the description (index into `Dag::params`).
+    Param(usize),
     Add(Vec<NodeId>),
     Mul(Vec<NodeId>),
     Neg(NodeId),
@@ -73,10 +66,18 @@ pub enum Node {
 
 pub type NodeId = usize;
 
+/// A named constant: its Rust name and value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Param {
+    pub name: String,
+    pub value: f64,
+}
+
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 enum Key {
     Input(usize),
     Const(u64),
+    Param(usize),
     Add(Vec<NodeId>),
     Mul(Vec<NodeId>),
     Neg(NodeId),
@@ -86,7 +87,15 @@ enum Key {
 #[derive(Debug, Default)]
 pub struct Dag {
     pub nodes: Vec<Node>,
+    /// The leaves' names and values, in the order they were first used.
+    pub params: Vec<Param>,
+    /// Names given to compound constant nodes (derived constants, emitted as
+    /// `const NAME: f64 = expression;` and used by name), in naming order.
+    pub derived: Vec<(String, NodeId)>,
+    derived_names: HashMap<NodeId, usize>,
+    constant: Vec<bool>,
     index: HashMap<Key, NodeId>,
+    param_index: HashMap<String, usize>,
 }
 
 impl Dag {
@@ -94,6 +103,7 @@ impl Dag {
         let key = match &node {
             Node::Input(i) => Key::Input(*i),
             Node::Const(c) => Key::Const(c.to_bits()),
+            Node::Param(p) => Key::Param(*p),
             Node::Add(a) => Key::Add(a.clone()),
             Node::Mul(m) => Key::Mul(m.clone()),
             Node::Neg(n) => Key::Neg(*n),
@@ -101,7 +111,14 @@ impl Dag {
         if let Some(&id) = self.index.get(&key) {
             return id;
         }
+        let constant = match &node {
+            Node::Input(_) => false,
+            Node::Const(_) | Node::Param(_) => true,
+            Node::Add(ops) | Node::Mul(ops) => ops.iter().all(|&o| self.constant[o]),
+            Node::Neg(x) => self.constant[*x],
+        };
         self.nodes.push(node);
+        self.constant.push(constant);
         self.index.insert(key, self.nodes.len() - 1);
         self.nodes.len() - 1
     }
@@ -114,6 +131,47 @@ impl Dag {
         self.intern(Node::Const(c))
     }
 
+    /// The named constant `name` (a Rust identifier) with `value`; the first
+    /// value given for a name is kept.
+    pub fn param(&mut self, name: &str, value: f64) -> NodeId {
+        let index = match self.param_index.get(name) {
+            Some(&index) => index,
+            None => {
+                self.params.push(Param {
+                    name: name.to_string(),
+                    value,
+                });
+                self.param_index
+                    .insert(name.to_string(), self.params.len() - 1);
+                self.params.len() - 1
+            }
+        };
+        self.intern(Node::Param(index))
+    }
+
+    /// Names a compound constant node (a derived constant); leaves and
+    /// nodes already named keep their name.
+    pub fn name(&mut self, id: NodeId, name: &str) -> NodeId {
+        let compound = matches!(self.nodes[id], Node::Add(_) | Node::Mul(_) | Node::Neg(_));
+        if self.constant[id] && compound && !self.derived_names.contains_key(&id) {
+            self.derived_names.insert(id, self.derived.len());
+            self.derived.push((name.to_string(), id));
+        }
+        id
+    }
+
+    /// The name of a derived constant node.
+    pub fn derived_name(&self, id: NodeId) -> Option<&str> {
+        self.derived_names
+            .get(&id)
+            .map(|&k| self.derived[k].0.as_str())
+    }
+
+    /// Whether `id` depends on constants only (folded at compile time).
+    pub fn is_constant(&self, id: NodeId) -> bool {
+        self.constant[id]
+    }
+
     fn constant_value(&self, id: NodeId) -> Option<f64> {
         match self.nodes[id] {
             Node::Const(c) => Some(c),
@@ -121,70 +179,22 @@ impl Dag {
         }
     }
 
-    /// Sum with constants folded and operands in canonical order.
-    pub fn add(&mut self, operands: Vec<NodeId>) -> NodeId {
-        let mut constant = 0.0;
-        let mut rest = Vec::new();
-        for id in operands {
-            match (self.constant_value(id), &self.nodes[id]) {
-                (Some(c), _) => constant += c,
-                (_, Node::Add(inner)) => rest.extend(inner.clone()),
-                _ => rest.push(id),
-            }
-        }
-        if constant != 0.0 {
-            rest.push(self.constant(constant));
-        }
-        rest.sort_unstable();
-        match rest.len() {
-            0 => self.constant(0.0),
-            1 => rest[0],
-            _ => self.intern(Node::Add(rest)),
-        }
-    }
-
-    /// Product with constants folded; a factor of -1 becomes a negation.
-    pub fn mul(&mut self, operands: Vec<NodeId>) -> NodeId {
-        let mut constant = 1.0;
-        let mut rest = Vec::new();
-        for id in operands {
-            match (self.constant_value(id), &self.nodes[id]) {
-                (Some(c), _) => constant *= c,
-                (_, Node::Mul(inner)) => rest.extend(inner.clone()),
-                _ => rest.push(id),
-            }
-        }
-        if constant == 0.0 {
-            return self.constant(0.0);
-        }
-        rest.sort_unstable();
-        let product = match rest.len() {
-            0 => return self.constant(constant),
-            1 => rest[0],
-            _ => self.intern(Node::Mul(rest)),
-        };
-        if constant == 1.0 {
-            product
-        } else if constant == -1.0 {
-            self.intern(Node::Neg(product))
-        } else {
-            let c = self.constant(constant);
-            self.intern(Node::Mul(vec![c, product]))
-        }
-    }
-
     /// `a + b` without flattening, so a traced recursion keeps its shared
-    /// partial sums; zeros and constant pairs fold.
+    /// partial sums; zeros, literal pairs and `x + (-x)` fold.
     pub fn sum2(&mut self, a: NodeId, b: NodeId) -> NodeId {
         match (self.constant_value(a), self.constant_value(b)) {
-            (Some(x), Some(y)) => self.constant(x + y),
-            (Some(0.0), _) => b,
-            (_, Some(0.0)) => a,
-            _ => self.intern(Node::Add(vec![a.min(b), a.max(b)])),
+            (Some(x), Some(y)) => return self.constant(x + y),
+            (Some(0.0), _) => return b,
+            (_, Some(0.0)) => return a,
+            _ => {}
         }
+        if self.nodes[a] == Node::Neg(b) || self.nodes[b] == Node::Neg(a) {
+            return self.constant(0.0);
+        }
+        self.intern(Node::Add(vec![a.min(b), a.max(b)]))
     }
 
-    /// `a * b` without flattening; zeros, ones and constant pairs fold, a
+    /// `a * b` without flattening; zeros, ones and literal pairs fold, a
     /// constant goes first and negations move outwards (emitted as `-`).
     pub fn product2(&mut self, a: NodeId, b: NodeId) -> NodeId {
         match (self.constant_value(a), self.constant_value(b)) {
@@ -204,21 +214,21 @@ impl Dag {
             let p = self.product2(a, y);
             return self.negate(p);
         }
-        let operands = match self.constant_value(b) {
-            Some(_) => vec![b, a],
-            None if self.constant_value(a).is_some() => vec![a, b],
-            None => vec![a.min(b), a.max(b)],
+        let operands = match (self.constant[a], self.constant[b]) {
+            (false, true) => vec![b, a],
+            (true, false) => vec![a, b],
+            _ => vec![a.min(b), a.max(b)],
         };
         self.intern(Node::Mul(operands))
     }
 
-    /// `-a`, folding constants and double negations; `-(k * x)` becomes
-    /// `(-k) * x`, no separate negation.
+    /// `-a`, folding literals and double negations; `-(k * x)` with a
+    /// constant k becomes `(-k) * x`, no separate negation.
     pub fn negate(&mut self, a: NodeId) -> NodeId {
         match &self.nodes[a] {
             Node::Const(c) => self.constant(-c),
             Node::Neg(x) => *x,
-            Node::Mul(ops) if ops.len() == 2 && self.constant_value(ops[0]).is_some() => {
+            Node::Mul(ops) if ops.len() == 2 && self.constant[ops[0]] && !self.constant[a] => {
                 let (c, x) = (ops[0], ops[1]);
                 let minus = self.negate(c);
                 self.intern(Node::Mul(vec![minus, x]))
@@ -234,6 +244,7 @@ impl Dag {
             let v = match node {
                 Node::Input(i) => x[*i],
                 Node::Const(c) => *c,
+                Node::Param(p) => self.params[*p].value,
                 Node::Add(ops) => ops.iter().map(|&o| values[o]).sum(),
                 Node::Mul(ops) => ops.iter().map(|&o| values[o]).product(),
                 Node::Neg(n) => -values[*n],
@@ -243,75 +254,18 @@ impl Dag {
         roots.iter().map(|&r| values[r]).collect()
     }
 
-    /// A polynomial by a greedy multivariate Horner scheme: factor out the
-    /// input of highest `priority` that occurs in the most terms, recurse on
-    /// both parts. Equal priorities everywhere give the plain greedy scheme.
-    pub fn horner(&mut self, poly: &Poly, priority: &[u8]) -> NodeId {
-        self.horner_terms(poly.terms().to_vec(), priority)
-    }
-
-    fn horner_terms(&mut self, terms: Vec<(Vec<u32>, f64)>, priority: &[u8]) -> NodeId {
-        let Some(width) = terms.first().map(|t| t.0.len()) else {
-            return self.constant(0.0);
-        };
-        let counts: Vec<usize> = (0..width)
-            .map(|v| terms.iter().filter(|t| t.0[v] > 0).count())
-            .collect();
-        let best = (0..width)
-            .filter(|&v| counts[v] > 0)
-            .max_by_key(|&v| (priority[v], counts[v], std::cmp::Reverse(v)));
-        let Some(v) = best.filter(|&v| counts[v] > 0) else {
-            let sum = terms.iter().map(|t| t.1).sum();
-            return self.constant(sum);
-        };
-        if counts[v] == 1 && terms.len() == 1 {
-            return self.monomial(&terms[0]);
-        }
-        let (mut with, without): (Vec<_>, Vec<_>) = terms.into_iter().partition(|t| t.0[v] > 0);
-        for t in &mut with {
-            t.0[v] -= 1;
-        }
-        let x = self.input(v);
-        let inner = self.horner_terms(with, priority);
-        let factored = self.mul(vec![x, inner]);
-        if without.is_empty() {
-            return factored;
-        }
-        let rest = self.horner_terms(without, priority);
-        self.add(vec![factored, rest])
-    }
-
-    fn monomial(&mut self, (exponents, coefficient): &(Vec<u32>, f64)) -> NodeId {
-        let mut factors = vec![self.constant(*coefficient)];
-        for (v, &e) in exponents.iter().enumerate() {
-            let x = self.input(v);
-            factors.extend(std::iter::repeat_n(x, e as usize));
-        }
-        self.mul(factors)
-    }
-
-    /// Arithmetic operations needed to evaluate `roots` (each shared node once).
+    /// Run-time arithmetic operations of `roots` (each shared node once;
+    /// constant subexpressions are free).
     pub fn operation_count(&self, roots: &[NodeId]) -> usize {
-        let mut seen = vec![false; self.nodes.len()];
-        let mut stack: Vec<NodeId> = roots.to_vec();
-        let mut count = 0;
-        while let Some(id) = stack.pop() {
-            if std::mem::replace(&mut seen[id], true) {
-                continue;
-            }
-            match &self.nodes[id] {
-                Node::Add(ops) | Node::Mul(ops) => {
-                    count += ops.len() - 1;
-                    stack.extend(ops);
-                }
-                Node::Neg(n) => {
-                    count += 1;
-                    stack.push(*n);
-                }
-                Node::Input(_) | Node::Const(_) => {}
-            }
-        }
-        count
+        let reachable = self.reachable(roots);
+        (0..self.nodes.len())
+            .filter(|&id| reachable[id] && !self.constant[id])
+            .map(|id| match &self.nodes[id] {
+                Node::Add(ops) | Node::Mul(ops) => ops.len() - 1,
+                Node::Neg(_) => 1,
+                _ => 0,
+            })
+            .sum()
     }
 
     /// `operation_count` with negations that only feed sums left out: the
@@ -330,12 +284,18 @@ impl Dag {
             }
         }
         let free_negations = (0..self.nodes.len())
-            .filter(|&id| reachable[id] && free[id] && matches!(self.nodes[id], Node::Neg(_)))
+            .filter(|&id| {
+                reachable[id]
+                    && free[id]
+                    && !self.constant[id]
+                    && matches!(self.nodes[id], Node::Neg(_))
+            })
             .count();
         self.operation_count(roots) - free_negations
     }
 
-    fn reachable(&self, roots: &[NodeId]) -> Vec<bool> {
+    /// The nodes `roots` depend on.
+    pub fn reachable(&self, roots: &[NodeId]) -> Vec<bool> {
         let mut seen = vec![false; self.nodes.len()];
         let mut stack: Vec<NodeId> = roots.to_vec();
         while let Some(id) = stack.pop() {
@@ -345,7 +305,7 @@ impl Dag {
             match &self.nodes[id] {
                 Node::Add(ops) | Node::Mul(ops) => stack.extend(ops),
                 Node::Neg(n) => stack.push(*n),
-                Node::Input(_) | Node::Const(_) => {}
+                Node::Input(_) | Node::Const(_) | Node::Param(_) => {}
             }
         }
         seen
@@ -355,45 +315,6 @@ impl Dag {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn eval(dag: &Dag, id: NodeId, x: &[f64]) -> f64 {
-        match &dag.nodes[id] {
-            Node::Input(i) => x[*i],
-            Node::Const(c) => *c,
-            Node::Add(ops) => ops.iter().map(|&o| eval(dag, o, x)).sum(),
-            Node::Mul(ops) => ops.iter().map(|&o| eval(dag, o, x)).product(),
-            Node::Neg(n) => -eval(dag, *n, x),
-        }
-    }
-
-    fn eval_poly(p: &Poly, x: &[f64]) -> f64 {
-        p.terms()
-            .iter()
-            .map(|(e, c)| {
-                c * e
-                    .iter()
-                    .zip(x)
-                    .map(|(&k, v)| v.powi(k as i32))
-                    .product::<f64>()
-            })
-            .sum()
-    }
-
-    #[test]
-    fn horner_evaluates_like_the_polynomial() {
-        let p = Poly::from_terms([
-            (vec![2, 0, 1], 3.0),
-            (vec![1, 1, 0], -2.0),
-            (vec![0, 0, 0], 0.5),
-            (vec![1, 0, 1], 4.0),
-            (vec![0, 3, 0], -1.0),
-        ]);
-        let mut dag = Dag::default();
-        let root = dag.horner(&p, &[0, 0, 0]);
-        for x in [[0.3, -1.2, 2.0], [1.5, 0.1, -0.7]] {
-            assert!((eval(&dag, root, &x) - eval_poly(&p, &x)).abs() < 1e-12);
-        }
-    }
 
     #[test]
     fn negations_fold_into_constants_and_subtractions_are_free() {
@@ -416,25 +337,39 @@ mod tests {
         let mut dag = Dag::default();
         let a = dag.input(0);
         let b = dag.input(1);
-        let first = dag.mul(vec![a, b]);
-        let second = dag.mul(vec![b, a]);
+        let first = dag.product2(a, b);
+        let second = dag.product2(b, a);
         assert_eq!(first, second);
         assert_eq!(dag.operation_count(&[first, second]), 1);
     }
 
     #[test]
-    fn trig_reduction_keeps_value_and_lowers_cosine_degree() {
-        // inputs: s = 0, c = 1, x = 2
-        let p = Poly::from_terms([
-            (vec![0, 3, 1], 2.0),
-            (vec![2, 2, 0], 1.0),
-            (vec![0, 2, 0], 1.0),
-        ]);
-        let r = p.reduce_trig(&[(0, 1)]);
-        assert!(r.terms().iter().all(|(e, _)| e[1] <= 1));
-        for angle in [0.3_f64, -2.1] {
-            let x = [angle.sin(), angle.cos(), 0.7];
-            assert!((eval_poly(&p, &x) - eval_poly(&r, &x)).abs() < 1e-12);
-        }
+    fn constants_are_free_and_their_values_never_shape_the_program() {
+        let shape = |mass: f64, length: f64| {
+            let mut dag = Dag::default();
+            let x = dag.input(0);
+            let (m, l) = (dag.param("MASS", mass), dag.param("LENGTH", length));
+            let ml = dag.product2(m, l);
+            let minus = dag.negate(ml);
+            let root = dag.product2(minus, x);
+            let ops = dag.operation_count(&[root]);
+            let value = dag.evaluate(&[root], &[2.0])[0];
+            (dag.nodes, ops, value)
+        };
+        let (first, ops, value) = shape(1.5, 0.25);
+        let (second, _, other) = shape(1.0, -3.0);
+        assert_eq!(first, second);
+        assert_eq!(ops, 1, "only the multiply by x runs");
+        assert_eq!(value, -0.75);
+        assert_eq!(other, 6.0);
+    }
+
+    #[test]
+    fn a_constant_minus_itself_is_zero() {
+        let mut dag = Dag::default();
+        let m = dag.param("MASS", 2.0);
+        let minus = dag.negate(m);
+        let zero = dag.constant(0.0);
+        assert_eq!(dag.sum2(m, minus), zero);
     }
 }

@@ -86,6 +86,10 @@ impl Inertial {
     /// Lumps rigidly attached bodies given in one frame: mass sum,
     /// mass-weighted COM, parallel-axis theorem about the combined COM.
     pub fn combine(parts: &[Inertial]) -> Inertial {
+        // One part stays bit for bit what the description says.
+        if let [single] = parts {
+            return *single;
+        }
         let mass: f64 = parts.iter().map(|p| p.mass).sum();
         if mass == 0.0 {
             return Inertial::ZERO;

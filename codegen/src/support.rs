@@ -1,5 +1,7 @@
 //! The helpers every generated file carries after its functions: `sign`,
 //! the fused multiply-add `AddMul` the emitted sums use, and `sin_cos`.
+//! They need only `core`, so a generated file compiles in a `#![no_std]`
+//! crate with no dependency.
 
 use proc_macro2::TokenStream;
 use quote::quote;
@@ -14,10 +16,7 @@ pub fn items() -> TokenStream {
         pub fn sign(x: f64) -> f64 {
             if x > 0.0 { 1.0 } else if x < 0.0 { -1.0 } else { 0.0 }
         }
-        /// `self + a * b` and `self - a * b`: one fused instruction and one
-        /// rounding where the target has FMA (x86-64 built for a CPU with FMA,
-        /// as this repository's `.cargo/config.toml` does; every aarch64), a
-        /// multiply and an add elsewhere.
+        /// `self + a * b` and `self - a * b` (see `fused`).
         trait AddMul {
             fn add_mul(self, a: f64, b: f64) -> f64;
             fn sub_mul(self, a: f64, b: f64) -> f64;
@@ -25,19 +24,37 @@ pub fn items() -> TokenStream {
         impl AddMul for f64 {
             #[inline(always)]
             fn add_mul(self, a: f64, b: f64) -> f64 {
-                if cfg!(any(target_feature = "fma", target_arch = "aarch64")) {
-                    a.mul_add(b, self)
-                } else {
-                    self + a * b
-                }
+                fused(a, b, self)
             }
             #[inline(always)]
             fn sub_mul(self, a: f64, b: f64) -> f64 {
-                if cfg!(any(target_feature = "fma", target_arch = "aarch64")) {
-                    (-a).mul_add(b, self)
-                } else {
-                    self - a * b
-                }
+                fused(-a, b, self)
+            }
+        }
+        /// `a * b + c`: one fused instruction and one rounding where the
+        /// target has FMA (x86-64 built with `-C target-feature=+fma` or
+        /// `-C target-cpu=native` on a CPU with FMA; every aarch64), chosen
+        /// at compile time; a multiply and an add elsewhere. `core` only.
+        #[inline(always)]
+        fn fused(a: f64, b: f64, c: f64) -> f64 {
+            #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
+            {
+                use core::arch::x86_64::{_mm_cvtsd_f64, _mm_fmadd_sd, _mm_set_sd};
+                // SAFETY: compiled only for targets with FMA (and SSE2).
+                unsafe { _mm_cvtsd_f64(_mm_fmadd_sd(_mm_set_sd(a), _mm_set_sd(b), _mm_set_sd(c))) }
+            }
+            #[cfg(all(target_arch = "aarch64", target_feature = "neon"))]
+            {
+                use core::arch::aarch64::{vdup_n_f64, vfma_f64, vget_lane_f64};
+                // SAFETY: compiled only for targets with NEON.
+                unsafe { vget_lane_f64::<0>(vfma_f64(vdup_n_f64(c), vdup_n_f64(a), vdup_n_f64(b))) }
+            }
+            #[cfg(not(any(
+                all(target_arch = "x86_64", target_feature = "fma"),
+                all(target_arch = "aarch64", target_feature = "neon")
+            )))]
+            {
+                a * b + c
             }
         }
         #sin_cos
@@ -45,15 +62,17 @@ pub fn items() -> TokenStream {
 }
 
 /// sin and cos within about one ulp, several times faster than two libm
-/// calls: Cody-Waite reduction by pi/2 (pi/2 split in 33 + 33 + 53 bits, so
-/// k * part is exact for |k| < 2^20), then Taylor polynomials on
-/// [-pi/4, pi/4] (the first omitted terms are below 1e-16 relative),
-/// evaluated by Estrin's scheme; the quadrant is applied with bit
+/// calls and with `core` only: Cody-Waite reduction by pi/2, then Taylor
+/// polynomials on [-pi/4, pi/4] (the first omitted terms are below 1e-16
+/// relative), evaluated by Estrin's scheme; the quadrant is applied with bit
 /// operations, so a function's angles are computed together, in vector
-/// lanes (four per instruction with AVX2).
+/// lanes (four per instruction with AVX2). Up to |x| = 1e5 pi/2 is split in
+/// 33 + 33 + 53 bits (k * part exact for |k| < 2^20); up to 1e10 rad (1.6e9
+/// turns) a slower path splits it in 20-bit parts (exact for |k| < 2^33);
+/// beyond, no joint angle is meant and the result is NaN.
 fn sin_cos() -> TokenStream {
     quote! {
-        /// sin(x) and cos(x) to about one ulp; std beyond |x| = 1e5.
+        /// sin(x) and cos(x) to about one ulp for |x| <= 1e10; NaN beyond.
         #[inline]
         #[must_use]
         pub fn sin_cos(x: f64) -> (f64, f64) {
@@ -61,13 +80,14 @@ fn sin_cos() -> TokenStream {
             (s, c)
         }
         /// `sin_cos` of each angle, lane by lane (the compiler vectorizes the
-        /// loop); std for all if any |x| exceeds 1e5.
+        /// loop); a slower reduction for all if any |x| exceeds 1e5.
         #[inline]
         #[must_use]
         #[allow(clippy::excessive_precision, clippy::approx_constant)]
         pub fn sin_cos_n<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
             if !x.iter().all(|x| x.abs() <= 1.0e5) {
-                return (x.map(f64::sin), x.map(f64::cos));
+                let wide = x.map(sin_cos_wide);
+                return (wide.map(|p| p.0), wide.map(|p| p.1));
             }
             let mut sin = [0.0; N];
             let mut cos = [0.0; N];
@@ -81,38 +101,60 @@ fn sin_cos() -> TokenStream {
                     .sub_mul(k, 1.5707963267341256)
                     .sub_mul(k, 6.077100506303966e-11)
                     .sub_mul(k, 2.0222662487959506e-21);
-                // Estrin's scheme: short dependency chains.
-                let z = r * r;
-                let z2 = z * z;
-                let z4 = z2 * z2;
-                let sp = (-0.16666666666666666f64)
-                    .add_mul(z, 0.008333333333333333)
-                    .add_mul(z2, (-0.0001984126984126984f64).add_mul(z, 2.7557319223985893e-6))
-                    .add_mul(
-                        z4,
-                        (-2.505210838544172e-8f64)
-                            .add_mul(z, 1.6059043836821613e-10)
-                            .add_mul(z2, (-7.647163731819816e-13f64).add_mul(z, 2.8114572543455206e-15)),
-                    );
-                let cp = (-0.5f64)
-                    .add_mul(z, 0.041666666666666664)
-                    .add_mul(z2, (-0.001388888888888889f64).add_mul(z, 2.48015873015873e-5))
-                    .add_mul(
-                        z4,
-                        (-2.755731922398589e-7f64)
-                            .add_mul(z, 2.08767569878681e-9)
-                            .add_mul(z2, (-1.1470745597729725e-11f64).add_mul(z, 4.779477332387385e-14)),
-                    );
-                let s = r.add_mul(r * z, sp).to_bits();
-                let c = 1.0f64.add_mul(z, cp).to_bits();
-                // Odd quadrants swap sin and cos; sin changes sign in quadrants
-                // 2 and 3, cos in 1 and 2.
-                let n = shifted.to_bits();
-                let swap = (n & 1).wrapping_neg();
-                sin[i] = f64::from_bits(((s & !swap) | (c & swap)) ^ ((n & 2) << 62));
-                cos[i] = f64::from_bits(((c & !swap) | (s & swap)) ^ ((n.wrapping_add(1) & 2) << 62));
+                (sin[i], cos[i]) = quadrant_sin_cos(r, shifted.to_bits());
             }
             (sin, cos)
+        }
+        /// `sin_cos` for 1e5 < |x| <= 1e10 (pi/2 in 20-bit parts); NaN beyond.
+        #[allow(clippy::excessive_precision, clippy::approx_constant)]
+        fn sin_cos_wide(x: f64) -> (f64, f64) {
+            if !(x.abs() <= 1.0e10) {
+                return (f64::NAN, f64::NAN);
+            }
+            let shifted = 6755399441055744.0f64.add_mul(x, 0.6366197723675814);
+            let k = shifted - 6755399441055744.0;
+            let r = x
+                .sub_mul(k, 1.5707969665527344)
+                .add_mul(k, 6.39757672615815e-7)
+                .add_mul(k, 1.651400370616951e-13)
+                .sub_mul(k, 8.333742918520879e-20);
+            quadrant_sin_cos(r, shifted.to_bits())
+        }
+        /// sin and cos of `r` in [-pi/4, pi/4] turned by quadrant `n` mod 4.
+        #[inline(always)]
+        #[allow(clippy::excessive_precision)]
+        fn quadrant_sin_cos(r: f64, n: u64) -> (f64, f64) {
+            // Estrin's scheme: short dependency chains.
+            let z = r * r;
+            let z2 = z * z;
+            let z4 = z2 * z2;
+            let sp = (-0.16666666666666666f64)
+                .add_mul(z, 0.008333333333333333)
+                .add_mul(z2, (-0.0001984126984126984f64).add_mul(z, 2.7557319223985893e-6))
+                .add_mul(
+                    z4,
+                    (-2.505210838544172e-8f64)
+                        .add_mul(z, 1.6059043836821613e-10)
+                        .add_mul(z2, (-7.647163731819816e-13f64).add_mul(z, 2.8114572543455206e-15)),
+                );
+            let cp = (-0.5f64)
+                .add_mul(z, 0.041666666666666664)
+                .add_mul(z2, (-0.001388888888888889f64).add_mul(z, 2.48015873015873e-5))
+                .add_mul(
+                    z4,
+                    (-2.755731922398589e-7f64)
+                        .add_mul(z, 2.08767569878681e-9)
+                        .add_mul(z2, (-1.1470745597729725e-11f64).add_mul(z, 4.779477332387385e-14)),
+                );
+            let s = r.add_mul(r * z, sp).to_bits();
+            let c = 1.0f64.add_mul(z, cp).to_bits();
+            // Odd quadrants swap sin and cos; sin changes sign in quadrants
+            // 2 and 3, cos in 1 and 2.
+            let swap = (n & 1).wrapping_neg();
+            (
+                f64::from_bits(((s & !swap) | (c & swap)) ^ ((n & 2) << 62)),
+                f64::from_bits(((c & !swap) | (s & swap)) ^ ((n.wrapping_add(1) & 2) << 62)),
+            )
         }
     }
 }

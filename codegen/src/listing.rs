@@ -1,0 +1,102 @@
+//! The top of a generated file: sizes, names, and every number of the
+//! description as a named constant, then the derived constants (formulas
+//! over those names) and the regressor's parameter vector by name.
+
+use std::collections::HashMap;
+
+use proc_macro2::{Literal, TokenStream};
+use quote::{format_ident, quote};
+
+use crate::description::Description;
+use crate::emit::{Input, Printer, int, literal};
+use crate::recursive::{Definition, Traced};
+
+/// Names of the ten inertial parameters of body i, Pinocchio's order (the
+/// `PARAMETER_NAMES` stems).
+pub const INERTIAL_NAMES: [&str; 10] = [
+    "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
+];
+/// Names of the joint-effect parameters of joint i.
+pub const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
+/// The Rust constants holding those parameters, with `{i}` the 1-based index.
+const INERTIAL_CONSTANTS: [&str; 10] = [
+    "MASS", "MX", "MY", "MZ", "IXX", "IXY", "IYY", "IXZ", "IYZ", "IZZ",
+];
+const EFFECT_CONSTANTS: [&str; 4] = ["ARMATURE", "VISCOUS", "COULOMB", "OFFSET"];
+
+/// The constant items, in file order.
+pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -> TokenStream {
+    let chain = description.chain();
+    let n = chain.bodies.len();
+    let (dof, count) = (int(n), int(14 * n));
+    let joints = chain.bodies.iter().map(|b| Literal::string(&b.joint));
+    let groups = traced.groups.iter().map(|group| {
+        let doc = format!(" {}", group.doc);
+        let items = group
+            .items
+            .iter()
+            .enumerate()
+            .map(|(k, (name, definition))| {
+                let ident = format_ident!("{name}");
+                let value = match definition {
+                    Definition::Value(v) => literal(*v),
+                    Definition::Formula(f) => f.parse().expect("formulas are Rust expressions"),
+                };
+                let doc = (k == 0).then(|| quote! { #[doc = #doc] });
+                quote! { #doc pub const #ident: f64 = #value; }
+            });
+        quote! { #(#items)* }
+    });
+    let derived = derived(traced, inputs);
+    let names: Vec<String> = (1..=n)
+        .flat_map(|i| INERTIAL_NAMES.map(|p| format!("{p}{i}")))
+        .chain((1..=n).flat_map(|i| EFFECT_NAMES.map(|p| format!("{p}{i}"))))
+        .collect();
+    let values = (1..=n)
+        .flat_map(|i| INERTIAL_CONSTANTS.map(|q| format_ident!("LINK{i}_{q}")))
+        .chain((1..=n).flat_map(|i| EFFECT_CONSTANTS.map(|q| format_ident!("JOINT{i}_{q}"))));
+    quote! {
+        /// Number of moving joints.
+        pub const DOF: usize = #dof;
+        /// Number of regressor parameters: 10 inertial per link, 4 effects per joint.
+        pub const NUM_PARAMETERS: usize = #count;
+        /// Names of the moving joints, base first.
+        pub const JOINT_NAMES: [&str; #dof] = [#(#joints),*];
+        #(#groups)*
+        #derived
+        /// Parameter values of this description, in regressor column order:
+        /// per link m, m*c (x, y, z), inertia about the link origin (xx, xy, yy,
+        /// xz, yz, zz); then per joint armature, viscous, coulomb, offset.
+        pub const PARAMETERS: [f64; #count] = [#(#values),*];
+        /// Names of PARAMETERS, suffixed by the 1-based link or joint.
+        pub const PARAMETER_NAMES: [&str; #count] = [#(#names),*];
+    }
+}
+
+/// The regrouped parameters the functions use, as formulas.
+fn derived(traced: &Traced, inputs: &[Input]) -> TokenStream {
+    let printer = Printer {
+        dag: &traced.dag,
+        inputs,
+    };
+    let none = HashMap::new();
+    let items = traced
+        .dag
+        .derived
+        .iter()
+        .enumerate()
+        .map(|(k, (name, id))| {
+            let ident = format_ident!("{name}");
+            let value = printer.definition(*id, &none);
+            let doc = (k == 0).then(|| {
+                quote! {
+                    /// The inertial parameters the dynamics use: each link's mass, first
+                    /// moment along its joint axis and inertia about that axis moved to
+                    /// the link before it (same torques, fewer terms; see
+                    /// docs/generated-code.md).
+                }
+            });
+            quote! { #doc pub const #ident: f64 = #value; }
+        });
+    quote! { #(#items)* }
+}

@@ -1,0 +1,136 @@
+//! The mass matrix and the regressor from the joint twists in body axes:
+//! M = sum_k J_k^T M_k J_k and Y_ik = J_ik^T W_k.
+
+use super::newton_euler::{Motion, Rotation};
+use super::regroup::BodyParameters;
+use super::{QD, QDD, SIGN, Tracer, V3};
+use crate::program::NodeId;
+
+impl Tracer<'_> {
+    /// `twists[k][j]`, j <= k: the unit twist of joint j in body k's axes,
+    pub(super) fn twists(&mut self, rotations: &[Rotation]) -> Vec<Vec<(V3, V3)>> {
+        let n = rotations.len();
+        let zero = self.dag.constant(0.0);
+        let mut twists: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
+        for (k, rotation) in rotations.iter().enumerate() {
+            let p = self.joint(k).translation;
+            let mut row = Vec::with_capacity(k + 1);
+            for &(w, v) in twists.last().into_iter().flatten() {
+                let wxp = self.cross(w, p);
+                let v = self.add(v, wxp);
+                row.push((
+                    self.in_body_axes(rotation, w),
+                    self.in_body_axes(rotation, v),
+                ));
+            }
+            row.push((self.joint(k).axis, [zero; 3]));
+            twists.push(row);
+        }
+        twists
+    }
+
+    /// M_ij = sum over bodies k >= i, j of twist_ik . (momentum of twist_jk).
+    pub(super) fn mass_matrix(&mut self, twists: &[Vec<(V3, V3)>]) -> Vec<NodeId> {
+        let n = twists.len();
+        let mut momenta: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
+        for (k, row) in twists.iter().enumerate() {
+            let BodyParameters { m, h, inertia } = self.parameters[k];
+            let per_joint = row
+                .iter()
+                .map(|&(w, v)| {
+                    let mv = self.scale(v, m);
+                    let wxh = self.cross(w, h);
+                    let iw = self.mat_vec(&inertia, w);
+                    let hxv = self.cross(h, v);
+                    (self.add(mv, wxh), self.add(iw, hxv))
+                })
+                .collect();
+            momenta.push(per_joint);
+        }
+        let mut mass = vec![0; n * n];
+        for i in 0..n {
+            for j in i..n {
+                let terms: Vec<NodeId> = (j..n)
+                    .map(|k| {
+                        let (w, v) = twists[k][i];
+                        let (linear, angular) = momenta[k][j];
+                        let a = self.dot(v, linear);
+                        let b = self.dot(w, angular);
+                        self.dag.sum2(a, b)
+                    })
+                    .collect();
+                let mut entry = self.sum(&terms);
+                if i == j {
+                    let armature = self.joint(i).effects[0];
+                    entry = self.dag.sum2(entry, armature);
+                }
+                mass[i * n + j] = entry;
+                mass[j * n + i] = entry;
+            }
+        }
+        mass
+    }
+
+    /// Rigid-body columns from the body wrenches per unit parameter, then the
+    /// joint-effect columns (qdd, qd, sign(qd), 1 on the joint's own row).
+    pub(super) fn regressor(
+        &mut self,
+        twists: &[Vec<(V3, V3)>],
+        motions: &[Motion],
+    ) -> Vec<NodeId> {
+        let n = motions.len();
+        let zero = self.dag.constant(0.0);
+        let one = self.dag.constant(1.0);
+        let mut y = vec![zero; n * 14 * n];
+        for (k, motion) in motions.iter().enumerate() {
+            for (p, (force, moment)) in self.unit_wrenches(motion).into_iter().enumerate() {
+                for (i, &(w, v)) in twists[k].iter().enumerate() {
+                    let a = self.dot(v, force);
+                    let b = self.dot(w, moment);
+                    y[i * 14 * n + 10 * k + p] = self.dag.sum2(a, b);
+                }
+            }
+        }
+        for i in 0..n {
+            let row = i * 14 * n + 10 * n + 4 * i;
+            y[row] = self.input(i, QDD);
+            y[row + 1] = self.input(i, QD);
+            y[row + 2] = self.input(i, SIGN);
+            y[row + 3] = one;
+        }
+        y
+    }
+
+    /// The body wrench per unit value of each standard parameter, in the
+    /// order m, m*c (x, y, z), Ixx, Ixy, Iyy, Ixz, Iyz, Izz.
+    fn unit_wrenches(&mut self, motion: &Motion) -> Vec<(V3, V3)> {
+        let zero = self.dag.constant(0.0);
+        let one = self.dag.constant(1.0);
+        let none = [zero; 3];
+        let unit = |k: usize| {
+            let mut e = [zero; 3];
+            e[k] = one;
+            e
+        };
+        let mut wrenches = vec![(motion.a, none)];
+        for k in 0..3 {
+            let e = unit(k);
+            let wdxe = self.cross(motion.wd, e);
+            let wxe = self.cross(motion.w, e);
+            let wxwxe = self.cross(motion.w, wxe);
+            let force = self.add(wdxe, wxwxe);
+            let moment = self.cross(e, motion.a);
+            wrenches.push((force, moment));
+        }
+        for (r, c) in [(0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)] {
+            let mut inertia = [[zero; 3]; 3];
+            inertia[r][c] = one;
+            inertia[c][r] = one;
+            let iwd = self.mat_vec(&inertia, motion.wd);
+            let iw = self.mat_vec(&inertia, motion.w);
+            let gyroscopic = self.cross(motion.w, iw);
+            wrenches.push((none, self.add(iwd, gyroscopic)));
+        }
+        wrenches
+    }
+}

@@ -1,0 +1,213 @@
+//! The chain's dynamics as structured straight-line programs over named
+//! constants: what the generated file's functions compute.
+//!
+//! Same physics as `lagrangian.rs`, organised by body instead of expanded:
+//! - `tau`, `gravity`, `coriolis`: the Euler-Lagrange equations of a serial
+//!   chain regrouped body by body, i.e. the recursive Newton-Euler form
+//!   (velocities and accelerations outwards, wrenches inwards), all in body
+//!   axes, with gravity as a base acceleration (`newton_euler.rs`);
+//! - `mass_matrix`: M = sum_k J_k^T M_k J_k from each body's Jacobian (the
+//!   kinetic energy's Hessian), the joint twists expressed in body axes;
+//! - regressor: Y_ik = J_ik^T W_k with W_k the body's wrench per unit
+//!   inertial parameter (`jacobian.rs`).
+//!
+//! Each step is traced on a hash-consed `Dag` whose leaves are the inputs and
+//! the description's named constants (`constants.rs`): zero and unit
+//! rotation entries vanish, any other number stays a name, so the programs'
+//! shape does not depend on the values and an edit of one number changes
+//! one line of the generated file.
+
+mod constants;
+mod jacobian;
+mod newton_euler;
+mod regroup;
+#[cfg(test)]
+mod tests;
+
+pub use constants::{Definition, Group, SNAP};
+
+use crate::program::{Dag, NodeId};
+use crate::reduce::Chain;
+use constants::{JointLeaves, Leaves};
+use newton_euler::{JointState, Rotation};
+use regroup::BodyParameters;
+
+/// Program input positions; the layout of `lagrangian::inputs`:
+/// per joint sin, cos, qd, qdd, sign(qd).
+pub const INPUTS_PER_JOINT: usize = 5;
+const SIN: usize = 0;
+const COS: usize = 1;
+const QD: usize = 2;
+const QDD: usize = 3;
+const SIGN: usize = 4;
+
+type V3 = [NodeId; 3];
+
+/// The traced programs of one chain (one shared DAG; roots row-major).
+pub struct Traced {
+    pub dag: Dag,
+    /// The named numbers the generated file starts with.
+    pub groups: Vec<Group>,
+    /// M qdd + c + g + effects.
+    pub tau: Vec<NodeId>,
+    /// n x n, armature on the diagonal.
+    pub mass_matrix: Vec<NodeId>,
+    pub gravity: Vec<NodeId>,
+    pub coriolis: Vec<NodeId>,
+    /// viscous qd + coulomb sign(qd) + offset per joint.
+    pub effects: Vec<NodeId>,
+    /// n x 14n: ten inertial columns per body, then four effect columns per joint.
+    pub regressor: Vec<NodeId>,
+}
+
+/// Traces every function of `chain`.
+pub fn trace(chain: &Chain) -> Traced {
+    let mut dag = Dag::default();
+    let leaves = constants::leaves(&mut dag, chain);
+    let mut t = Tracer {
+        dag,
+        chain,
+        leaves,
+        parameters: Vec::new(),
+    };
+    t.parameters = t.regrouped();
+    let n = chain.bodies.len();
+    let rotations: Vec<Rotation> = (0..n).map(|i| t.rotation(i)).collect();
+    let zero = t.dag.constant(0.0);
+    let gravity_off = [zero; 3];
+    let base_acceleration = t.leaves.gravity.map(|g| t.dag.negate(g));
+    let full: Vec<JointState> = (0..n)
+        .map(|i| JointState {
+            qd: t.input(i, QD),
+            qdd: t.input(i, QDD),
+        })
+        .collect();
+    let at_rest: Vec<JointState> = (0..n)
+        .map(|_| JointState {
+            qd: zero,
+            qdd: zero,
+        })
+        .collect();
+    let no_acceleration: Vec<JointState> = full
+        .iter()
+        .map(|s| JointState { qdd: zero, ..*s })
+        .collect();
+
+    let motions = t.forward(&rotations, &full, base_acceleration);
+    let rigid = t.backward(&rotations, &motions);
+    let tau = (0..n)
+        .map(|i| {
+            let effects = t.effects(i, true);
+            t.dag.sum2(rigid[i], effects)
+        })
+        .collect();
+    let rest = t.forward(&rotations, &at_rest, base_acceleration);
+    let gravity = t.backward(&rotations, &rest);
+    let moving = t.forward(&rotations, &no_acceleration, gravity_off);
+    let coriolis = t.backward(&rotations, &moving);
+    let effects = (0..n).map(|i| t.effects(i, false)).collect();
+    let twists = t.twists(&rotations);
+    let mass_matrix = t.mass_matrix(&twists);
+    let regressor = t.regressor(&twists, &motions);
+    Traced {
+        dag: t.dag,
+        groups: t.leaves.groups,
+        tau,
+        mass_matrix,
+        gravity,
+        coriolis,
+        effects,
+        regressor,
+    }
+}
+
+struct Tracer<'a> {
+    dag: Dag,
+    chain: &'a Chain,
+    leaves: Leaves,
+    /// Per body the inertial parameters the dynamics use (regrouped).
+    parameters: Vec<BodyParameters>,
+}
+
+impl Tracer<'_> {
+    fn input(&mut self, joint: usize, which: usize) -> NodeId {
+        self.dag.input(INPUTS_PER_JOINT * joint + which)
+    }
+
+    fn joint(&self, i: usize) -> &JointLeaves {
+        &self.leaves.joints[i]
+    }
+
+    fn sum(&mut self, terms: &[NodeId]) -> NodeId {
+        let zero = self.dag.constant(0.0);
+        terms.iter().fold(zero, |acc, &t| self.dag.sum2(acc, t))
+    }
+
+    fn add(&mut self, a: V3, b: V3) -> V3 {
+        [0, 1, 2].map(|k| self.dag.sum2(a[k], b[k]))
+    }
+
+    fn subtract(&mut self, a: V3, b: V3) -> V3 {
+        [0, 1, 2].map(|k| {
+            let minus = self.dag.negate(b[k]);
+            self.dag.sum2(a[k], minus)
+        })
+    }
+
+    fn scale(&mut self, v: V3, s: NodeId) -> V3 {
+        v.map(|x| self.dag.product2(x, s))
+    }
+
+    fn dot(&mut self, a: V3, b: V3) -> NodeId {
+        let products = [0, 1, 2].map(|k| self.dag.product2(a[k], b[k]));
+        self.sum(&products)
+    }
+
+    fn cross(&mut self, a: V3, b: V3) -> V3 {
+        [(1, 2), (2, 0), (0, 1)].map(|(j, k)| {
+            let plus = self.dag.product2(a[j], b[k]);
+            let minus = self.dag.product2(a[k], b[j]);
+            let minus = self.dag.negate(minus);
+            self.dag.sum2(plus, minus)
+        })
+    }
+
+    fn mat_vec(&mut self, rows: &[V3; 3], v: V3) -> V3 {
+        [0, 1, 2].map(|r| self.dot(rows[r], v))
+    }
+
+    /// M^T v for the rows of M.
+    fn inverse_rotate(&mut self, rows: &[V3; 3], v: V3) -> V3 {
+        let columns = [0, 1, 2].map(|c| [rows[0][c], rows[1][c], rows[2][c]]);
+        self.mat_vec(&columns, v)
+    }
+
+    /// The rows of A B.
+    fn mat_mul(&mut self, a: &[V3; 3], b: &[V3; 3]) -> [V3; 3] {
+        let columns = [0, 1, 2].map(|c| [b[0][c], b[1][c], b[2][c]]);
+        [0, 1, 2].map(|r| [0, 1, 2].map(|c| self.dot(a[r], columns[c])))
+    }
+
+    /// u v^T.
+    fn outer(&mut self, u: V3, v: V3) -> [V3; 3] {
+        [0, 1, 2].map(|r| [0, 1, 2].map(|c| self.dag.product2(u[r], v[c])))
+    }
+
+    /// The identity scaled by `s`, literal zeros off the diagonal.
+    fn diagonal(&mut self, s: NodeId) -> [V3; 3] {
+        let zero = self.dag.constant(0.0);
+        [0, 1, 2].map(|r| [0, 1, 2].map(|c| if r == c { s } else { zero }))
+    }
+
+    fn mat_add(&mut self, a: &[V3; 3], b: &[V3; 3]) -> [V3; 3] {
+        [0, 1, 2].map(|r| self.add(a[r], b[r]))
+    }
+
+    fn mat_subtract(&mut self, a: &[V3; 3], b: &[V3; 3]) -> [V3; 3] {
+        [0, 1, 2].map(|r| self.subtract(a[r], b[r]))
+    }
+
+    fn mat_scale(&mut self, a: &[V3; 3], s: NodeId) -> [V3; 3] {
+        [0, 1, 2].map(|r| self.scale(a[r], s))
+    }
+}

@@ -1,0 +1,236 @@
+use nalgebra::{Matrix3, Vector3};
+
+use super::*;
+use crate::description::Description;
+use std::path::Path;
+
+const PLANAR: &str = r#"
+    gravity = [0.0, -9.81, 0.0]
+    [[links]]
+    name = "base"
+    [[links]]
+    name = "upper"
+    mass = 2.0
+    com = [0.35, 0.0, 0.0]
+    inertia = { ixx = 0.002, iyy = 0.12, izz = 0.12 }
+    [[links]]
+    name = "fore"
+    mass = 1.5
+    com = [0.4, 0.0, 0.0]
+    inertia = { ixx = 0.0015, iyy = 0.08, izz = 0.08 }
+    [[joints]]
+    name = "shoulder"
+    type = "revolute"
+    parent = "base"
+    child = "upper"
+    effects = { viscous = 0.3, coulomb = 0.2, offset = -0.1, armature = 0.01 }
+    [[joints]]
+    name = "elbow"
+    type = "revolute"
+    parent = "upper"
+    child = "fore"
+    origin = { xyz = [0.8, 0.0, 0.0] }
+"#;
+
+fn inputs(q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+    (0..q.len())
+        .flat_map(|i| [q[i].sin(), q[i].cos(), qd[i], qdd[i], qd[i].signum()])
+        .collect()
+}
+
+/// The textbook closed form of the planar two-link arm (gravity along -y).
+fn closed_form(q: &[f64], qd: &[f64], qdd: &[f64]) -> [f64; 2] {
+    let (m1, m2, l1, c1, c2, g) = (2.0, 1.5, 0.8, 0.35, 0.4, 9.81);
+    let (i1, i2) = (0.12 + m1 * c1 * c1, 0.08 + m2 * c2 * c2);
+    let cos2 = q[1].cos();
+    let m11 = i1 + i2 + m2 * l1 * l1 + 2.0 * m2 * l1 * c2 * cos2;
+    let m12 = i2 + m2 * l1 * c2 * cos2;
+    let h = -m2 * l1 * c2 * q[1].sin();
+    let g1 = (m1 * c1 + m2 * l1) * g * q[0].cos() + m2 * c2 * g * (q[0] + q[1]).cos();
+    let g2 = m2 * c2 * g * (q[0] + q[1]).cos();
+    [
+        m11 * qdd[0] + m12 * qdd[1] + h * (2.0 * qd[0] * qd[1] + qd[1] * qd[1]) + g1,
+        m12 * qdd[0] + i2 * qdd[1] - h * qd[0] * qd[0] + g2,
+    ]
+}
+
+/// A plain numeric recursive Newton-Euler for per-body standard
+/// parameters (no joint effects), the reference for the traced programs.
+fn rnea(
+    chain: &Chain,
+    params: &[[f64; 10]],
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    g: bool,
+) -> Vec<f64> {
+    type V = Vector3<f64>;
+    let n = chain.bodies.len();
+    let (mut w, mut wd) = (V::zeros(), V::zeros());
+    let mut a = if g { -chain.gravity } else { V::zeros() };
+    let mut frames = Vec::new();
+    let mut wrenches = Vec::new();
+    for (i, body) in chain.bodies.iter().enumerate() {
+        let r = body.rotation * crate::reduce::axis_angle(&body.axis, q[i]);
+        let z = body.axis;
+        a = r.transpose()
+            * (a + wd.cross(&body.translation) + w.cross(&w.cross(&body.translation)));
+        let w_in = r.transpose() * w;
+        w = w_in + z * qd[i];
+        wd = r.transpose() * wd + z * qdd[i] + w_in.cross(&(z * qd[i]));
+        let [m, hx, hy, hz, xx, xy, yy, xz, yz, zz] = params[i];
+        let h = V::new(hx, hy, hz);
+        let inertia = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+        let force = m * a + wd.cross(&h) + w.cross(&w.cross(&h));
+        let moment = inertia * wd + w.cross(&(inertia * w)) + h.cross(&a);
+        frames.push(r);
+        wrenches.push((force, moment));
+    }
+    let mut tau = vec![0.0; n];
+    for i in (0..n).rev() {
+        if i + 1 < n {
+            let (f, m) = wrenches[i + 1];
+            let (f, m) = (frames[i + 1] * f, frames[i + 1] * m);
+            let p = chain.bodies[i + 1].translation;
+            wrenches[i].0 += f;
+            wrenches[i].1 += m + p.cross(&f);
+        }
+        tau[i] = chain.bodies[i].axis.dot(&wrenches[i].1);
+    }
+    tau
+}
+
+/// A deterministic pseudo-random number in [-1, 1).
+fn uniform(state: &mut u64) -> f64 {
+    *state = state
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+fn assert_close(what: &str, got: &[f64], want: &[f64]) {
+    let scale = want.iter().fold(1.0_f64, |s, x| s.max(x.abs()));
+    for (k, (g, w)) in got.iter().zip(want).enumerate() {
+        assert!((g - w).abs() <= 1e-12 * scale, "{what}[{k}]: {g} vs {w}");
+    }
+}
+
+/// Every traced function against the numeric reference, on random states.
+fn check_against_reference(model: &str, samples: usize) {
+    let path = format!("{}/../models/{model}.toml", env!("CARGO_MANIFEST_DIR"));
+    let description = Description::load(&path).unwrap();
+    let chain = description.chain();
+    let traced = trace(chain);
+    let n = chain.bodies.len();
+    let params: Vec<[f64; 10]> = chain
+        .bodies
+        .iter()
+        .map(|b| b.inertial.standard_parameters())
+        .collect();
+    let effects: Vec<_> = chain.bodies.iter().map(|b| b.effects).collect();
+    let mut state = 7;
+    for sample in 0..samples {
+        let mut random =
+            |scale: f64| -> Vec<f64> { (0..n).map(|_| scale * uniform(&mut state)).collect() };
+        let (q, qd, qdd) = (random(std::f64::consts::PI), random(3.0), random(10.0));
+        let x = inputs(&q, &qd, &qdd);
+        let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
+        let zeros = vec![0.0; n];
+        let mut tau = rnea(chain, &params, &q, &qd, &qdd, true);
+        for (i, e) in effects.iter().enumerate() {
+            tau[i] +=
+                e.armature * qdd[i] + e.viscous * qd[i] + e.coulomb * qd[i].signum() + e.offset;
+        }
+        assert_close("tau", &eval(&traced.tau), &tau);
+        let gravity = rnea(chain, &params, &q, &zeros, &zeros, true);
+        assert_close("gravity", &eval(&traced.gravity), &gravity);
+        let coriolis = rnea(chain, &params, &q, &qd, &zeros, false);
+        assert_close("coriolis", &eval(&traced.coriolis), &coriolis);
+        if sample % 10 != 0 {
+            continue;
+        }
+        let mut mass = vec![0.0; n * n];
+        for j in 0..n {
+            let mut unit = zeros.clone();
+            unit[j] = 1.0;
+            let column = rnea(chain, &params, &q, &zeros, &unit, false);
+            for i in 0..n {
+                mass[i * n + j] = column[i] + if i == j { effects[i].armature } else { 0.0 };
+            }
+        }
+        assert_close("mass_matrix", &eval(&traced.mass_matrix), &mass);
+        let y = eval(&traced.regressor);
+        for (k, p) in (0..n).flat_map(|k| (0..10).map(move |p| (k, p))) {
+            let mut unit = vec![[0.0; 10]; n];
+            unit[k][p] = 1.0;
+            let column = rnea(chain, &unit, &q, &qd, &qdd, true);
+            let got: Vec<f64> = (0..n).map(|i| y[i * 14 * n + 10 * k + p]).collect();
+            assert_close("regressor", &got, &column);
+        }
+    }
+}
+
+#[test]
+fn panda_matches_the_numeric_reference() {
+    check_against_reference("panda", 1000);
+}
+
+#[test]
+fn gen3_lite_matches_the_numeric_reference() {
+    check_against_reference("kinova_gen3_lite", 1000);
+    check_against_reference("kinova_gen3_lite_3dof", 1000);
+}
+
+#[test]
+fn planar_arm_matches_its_closed_form() {
+    let description = Description::parse(PLANAR, "planar", Path::new("planar.toml")).unwrap();
+    let traced = trace(description.chain());
+    let (q, qd, qdd) = ([0.3, -1.1], [0.7, -0.4], [1.3, 0.5]);
+    let x = inputs(&q, &qd, &qdd);
+    let tau = traced.dag.evaluate(&traced.tau, &x);
+    let rigid = closed_form(&q, &qd, &qdd);
+    let effects = 0.01 * qdd[0] + 0.3 * qd[0] + 0.2 - 0.1;
+    assert!(
+        (tau[0] - rigid[0] - effects).abs() < 1e-12,
+        "{tau:?} {rigid:?}"
+    );
+    assert!((tau[1] - rigid[1]).abs() < 1e-12);
+}
+
+#[test]
+fn functions_are_consistent() {
+    let description = Description::parse(PLANAR, "planar", Path::new("planar.toml")).unwrap();
+    let traced = trace(description.chain());
+    let params: Vec<f64> = description
+        .chain()
+        .bodies
+        .iter()
+        .flat_map(|b| b.inertial.standard_parameters())
+        .chain(description.chain().bodies.iter().flat_map(|b| {
+            let e = b.effects;
+            [e.armature, e.viscous, e.coulomb, e.offset]
+        }))
+        .collect();
+    let (q, qd, qdd) = ([-0.6, 2.0], [1.5, 0.9], [-0.2, 0.8]);
+    let x = inputs(&q, &qd, &qdd);
+    let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
+    let (tau, m, g, c) = (
+        eval(&traced.tau),
+        eval(&traced.mass_matrix),
+        eval(&traced.gravity),
+        eval(&traced.coriolis),
+    );
+    let y = eval(&traced.regressor);
+    for i in 0..2 {
+        let effects = if i == 0 { 0.3 * qd[0] + 0.2 - 0.1 } else { 0.0 };
+        let split = m[2 * i] * qdd[0] + m[2 * i + 1] * qdd[1] + c[i] + g[i] + effects;
+        let regressed: f64 = (0..28).map(|k| y[28 * i + k] * params[k]).sum();
+        assert!(
+            (tau[i] - split).abs() < 1e-12,
+            "joint {i}: {} vs {split}",
+            tau[i]
+        );
+        assert!((tau[i] - regressed).abs() < 1e-12);
+    }
+    assert_eq!(m[1], m[2]);
+}
