@@ -9,7 +9,11 @@ fn main() {
     // A directory: cargo re-runs this script when any file below it changes,
     // including added or removed descriptions.
     println!("cargo:rerun-if-changed=models");
-    let results = match Config::new("models").run() {
+    // CI sets this to regenerate every model in memory and fail on any
+    // difference from the committed text (nothing is written).
+    println!("cargo:rerun-if-env-changed=SDNN_VERIFY_GENERATED");
+    let verify = std::env::var_os("SDNN_VERIFY_GENERATED").is_some();
+    let results = match Config::new("models").check(verify).run() {
         Ok(results) => results,
         Err(e) => fail(&e),
     };
@@ -29,6 +33,15 @@ fn main() {
                         report.generated.display(),
                         ops.join(", ")
                     );
+                }
+                if report.outcome == Outcome::Stale {
+                    errors.push(format!(
+                        "{} differs from what the generator now produces from {}; run \
+                         `cargo run -p sdnn-codegen -- --force {}` and commit the result",
+                        report.generated.display(),
+                        report.toml.display(),
+                        report.toml.display()
+                    ));
                 }
                 names.push(report.name);
             }

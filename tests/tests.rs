@@ -5,6 +5,7 @@ mod descriptions;
 mod diagnose;
 mod dynamics;
 mod freshness;
+mod generated_code;
 mod hidden_effects;
 mod lumping;
 mod study;

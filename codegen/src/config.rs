@@ -27,7 +27,8 @@ pub enum Outcome {
         seconds: f64,
         operations: Vec<crate::generate::Cost>,
     },
-    /// Check mode: the file is missing or out of date; nothing was written.
+    /// Check mode: the file is missing or differs from what the generator
+    /// produces now; nothing was written.
     Stale,
 }
 
@@ -50,7 +51,9 @@ impl Config {
         }
     }
 
-    /// Report stale files instead of regenerating them.
+    /// Regenerate every model in memory and compare with the file's text
+    /// (the sourcegen check: it catches a generator change that the
+    /// fingerprint would miss); report differences, write nothing.
     pub fn check(&mut self, check: bool) -> &mut Self {
         self.check = check;
         self
@@ -88,19 +91,26 @@ impl Config {
         let source = std::fs::read_to_string(toml)
             .map_err(|e| format!("{}: cannot read: {e}", toml.display()))?;
         let description = Description::load(toml).map_err(|e| e.to_string())?;
-        check_model_name(&description.name, toml)?;
+        crate::description::check_model_name(&description.name, toml)?;
         let generated = self
             .models_dir
             .join(crate::generated_file_name(&description.name));
         let existing = std::fs::read_to_string(&generated).unwrap_or_default();
-        let outcome = if is_fresh(&source, &existing) && !self.force {
+        let label = format!("models/{}.toml", description.name);
+        let regenerate = || {
+            generate(&description, &source, &label)
+                .map_err(|e| format!("{}: generation failed: {e}", toml.display()))
+        };
+        let outcome = if self.check {
+            if regenerate()?.code == existing {
+                Outcome::Fresh
+            } else {
+                Outcome::Stale
+            }
+        } else if is_fresh(&source, &existing) && !self.force {
             Outcome::Fresh
-        } else if self.check {
-            Outcome::Stale
         } else {
-            let label = format!("models/{}.toml", description.name);
-            let output = generate(&description, &source, &label)
-                .map_err(|e| format!("{}: generation failed: {e}", toml.display()))?;
+            let output = regenerate()?;
             write_if_changed(&generated, &output.code)?;
             Outcome::Regenerated {
                 seconds: output.seconds,
@@ -141,22 +151,6 @@ pub fn registry(names: &[String]) -> String {
     out
 }
 
-fn check_model_name(name: &str, toml: &Path) -> Result<(), String> {
-    let mut chars = name.chars();
-    let valid = chars
-        .next()
-        .is_some_and(|c| c.is_ascii_lowercase() || c == '_')
-        && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
-    if valid {
-        Ok(())
-    } else {
-        Err(format!(
-            "{}: the model is named by its file stem, which must be a snake_case Rust identifier \
-             (lowercase letters, digits, `_`); found `{name}`",
-            toml.display()
-        ))
-    }
-}
 
 /// Writes atomically (temporary file, then rename), and only if different.
 fn write_if_changed(path: &Path, contents: &str) -> Result<(), String> {

@@ -48,7 +48,7 @@ fn main() -> ExitCode {
                 Outcome::Fresh => println!("fresh        {}", report.generated.display()),
                 Outcome::Stale => {
                     println!(
-                        "STALE        {} (run `cargo run -p sdnn-codegen -- {}` and commit the result)",
+                        "STALE        {} (run `cargo run -p sdnn-codegen -- --force {}` and commit the result)",
                         report.generated.display(),
                         report.toml.display()
                     );

@@ -234,3 +234,63 @@ fn functions_are_consistent() {
     }
     assert_eq!(m[1], m[2]);
 }
+
+/// The traced programs of `toml` with `from` replaced by `to` (once).
+fn traced_with_edit(toml: &str, from: &str, to: &str) -> Traced {
+    assert_eq!(toml.matches(from).count(), 1, "{from} must occur once");
+    let edited = toml.replacen(from, to, 1);
+    let description = Description::parse(&edited, "panda", Path::new("panda.toml")).unwrap();
+    trace(description.chain())
+}
+
+#[test]
+fn one_number_edits_keep_the_program_shape() {
+    // The emitted text is a function of the DAG, the constants' names and
+    // the listed values: equal DAGs and names mean one changed line.
+    let path = format!("{}/../models/panda.toml", env!("CARGO_MANIFEST_DIR"));
+    let toml = std::fs::read_to_string(path).unwrap();
+    let base = traced_with_edit(&toml, "mass = 0.735522", "mass = 0.735522");
+    let edits = [
+        ("mass = 0.735522", "mass = 0.80"),
+        ("com = [0.010517, -0.004252", "com = [0.02, -0.004252"),
+        ("izz = 0.004815", "izz = 0.005"),
+        ("xyz = [0.0, -0.316, 0.0]", "xyz = [0.0, -0.32, 0.0]"),
+        ("xyz = [0.088, 0.0, 0.0]", "xyz = [0.09, 0.0, 0.0]"),
+    ];
+    for (from, to) in edits {
+        let edited = traced_with_edit(&toml, from, to);
+        assert_eq!(base.dag.nodes, edited.dag.nodes, "{from} -> {to}");
+        assert_eq!(base.dag.derived, edited.dag.derived, "{from} -> {to}");
+        let names = |t: &Traced| -> Vec<String> {
+            t.dag.params.iter().map(|p| p.name.clone()).collect()
+        };
+        assert_eq!(names(&base), names(&edited), "{from} -> {to}");
+        let changed: Vec<(&str, f64, f64)> = base
+            .groups
+            .iter()
+            .flat_map(|g| &g.items)
+            .zip(edited.groups.iter().flat_map(|g| &g.items))
+            .filter(|(a, b)| a.1 != b.1)
+            .map(|(a, b)| match (&a.1, &b.1) {
+                (Definition::Value(x), Definition::Value(y)) => (a.0.as_str(), *x, *y),
+                _ => panic!("a formula changed: {} {:?} {:?}", a.0, a.1, b.1),
+            })
+            .collect();
+        assert_eq!(changed.len(), 1, "{from} -> {to}: {changed:?}");
+    }
+}
+
+#[test]
+fn a_zero_becoming_non_zero_is_a_structural_change() {
+    let path = format!("{}/../models/planar_2link.toml", env!("CARGO_MANIFEST_DIR"));
+    let toml = std::fs::read_to_string(path).unwrap();
+    let description = Description::parse(&toml, "planar", Path::new("planar.toml")).unwrap();
+    let before = trace(description.chain()).dag.params.len();
+    let chain = {
+        let mut chain = description.chain().clone();
+        chain.bodies[1].effects.viscous = 0.25;
+        chain
+    };
+    let after = trace(&chain).dag.params.len();
+    assert_eq!(after, before + 1, "the new coefficient becomes a named leaf");
+}
