@@ -1087,7 +1087,7 @@ fn check_names(
     joints: &[JointOut],
 ) -> Result<(), ImportError> {
     let invalid = |element: String, message: String| ImportError::Invalid { element, message };
-    codegen::description::check_name(name).map_err(|m| {
+    codegen::names::check_name(name).map_err(|m| {
         if from_option {
             invalid("--name".into(), m)
         } else {
@@ -1098,11 +1098,11 @@ fn check_names(
         }
     })?;
     for link in links {
-        codegen::description::check_name(&link.name)
+        codegen::names::check_name(&link.name)
             .map_err(|m| invalid(format!("<link name={:?}>", link.name), m))?;
     }
     for joint in joints {
-        codegen::description::check_name(&joint.name)
+        codegen::names::check_name(&joint.name)
             .map_err(|m| invalid(format!("<joint name={:?}>", joint.name), m))?;
     }
     Ok(())
@@ -1352,6 +1352,43 @@ mod tests {
                 .any(|w| w.contains("<mimic joint='J2'> ignored"))
         );
         assert_eq!(parse(&imported.toml).dof(), 2);
+    }
+
+    #[test]
+    fn names_with_newlines_are_refused_and_never_reach_the_toml() {
+        let crafted = arm(&[]).replace("name='test'", "name='Arm&#10;pub fn injected() {}&#10;#'");
+        let message = error(&crafted, &ImportOptions::default());
+        assert!(
+            message.contains("<robot name>") && message.contains("U+000A"),
+            "{message}"
+        );
+        assert!(message.contains("--name"), "{message}");
+        // With --name the robot name is not used, and the header escapes it.
+        let options = ImportOptions {
+            name: Some("arm".into()),
+            ..ImportOptions::default()
+        };
+        let imported = run(&crafted, &options).expect("imports with --name");
+        assert!(!imported.toml.contains("\npub fn"), "{}", imported.toml);
+        assert!(
+            imported.toml.contains("\\npub fn injected"),
+            "{}",
+            imported.toml
+        );
+        let link = arm(&[])
+            .replace("body(\"b\"", "")
+            .replace("name='b'", "name='b&#10;x'");
+        let link = link.replace("link='b'", "link='b&#10;x'");
+        let message = error(&link, &ImportOptions::default());
+        assert!(
+            message.contains("<link name=") && message.contains("U+000A"),
+            "{message}"
+        );
+        let bad = ImportOptions {
+            name: Some("two\nlines".into()),
+            ..ImportOptions::default()
+        };
+        assert!(error(&arm(&[]), &bad).starts_with("--name"));
     }
 
     #[test]

@@ -63,7 +63,10 @@ fn the_controller_example_builds_without_symbolica() {
     let temp = tempfile::tempdir().unwrap();
     cargo_build(&example, temp.path(), "");
     let manifest = std::fs::read_to_string(example.join("Cargo.toml")).unwrap();
-    assert!(!manifest.contains("[dependencies]"), "the example must stand alone");
+    assert!(
+        !manifest.contains("[dependencies]"),
+        "the example must stand alone"
+    );
 }
 
 #[test]
@@ -87,7 +90,9 @@ fn names_with_quotes_and_comment_ends_stay_inert_text() {
         let robot_line = code.lines().find(|l| l.starts_with("// Robot: ")).unwrap();
         assert!(robot_line.starts_with("// Robot: \""), "{robot_line}");
     }
-    let toml = "name = \"Arm \\\"quoted\\\" */ end\"\n[[links]]\nname = \"base\"\n";
+    let toml = "name = \"Arm \\\"quoted\\\" */ end\"\n[[links]]\nname = \"base\"\n\
+                [[links]]\nname = \"l1\"\nmass = 1.0\ninertia = { ixx = 1.0, iyy = 1.0, izz = 1.0 }\n\
+                [[joints]]\nname = \"j1\"\ntype = \"revolute\"\nparent = \"base\"\nchild = \"l1\"\n";
     let description = codegen::Description::parse(toml, "arm", Path::new("arm.toml")).unwrap();
     assert_eq!(description.robot, "Arm \"quoted\" */ end");
 }
@@ -96,6 +101,9 @@ fn names_with_quotes_and_comment_ends_stay_inert_text() {
 fn a_model_file_named_like_a_keyword_is_refused() {
     let error = codegen::description::check_model_name("type", Path::new("models/type.toml"))
         .expect_err("a keyword cannot name a module");
-    assert!(error.contains("models/type.toml") && error.contains("keyword"), "{error}");
+    assert!(
+        error.contains("models/type.toml") && error.contains("keyword"),
+        "{error}"
+    );
     assert!(codegen::description::check_model_name("panda", Path::new("panda.toml")).is_ok());
 }

@@ -151,7 +151,6 @@ pub fn registry(names: &[String]) -> String {
     out
 }
 
-
 /// Writes atomically (temporary file, then rename), and only if different.
 fn write_if_changed(path: &Path, contents: &str) -> Result<(), String> {
     if std::fs::read_to_string(path).is_ok_and(|old| old == contents) {

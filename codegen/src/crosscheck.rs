@@ -52,7 +52,7 @@ pub fn against_lagrangian(
 fn compare(what: &str, got: &[f64], want: &[f64]) -> Result<(), String> {
     let scale = want.iter().fold(1.0_f64, |s, w| s.max(w.abs()));
     for (k, (g, w)) in got.iter().zip(want).enumerate() {
-        if !((g - w).abs() <= TOLERANCE * scale) {
+        if (g - w).abs() > TOLERANCE * scale || !g.is_finite() {
             return Err(format!(
                 "the generated {what} (entry {k}) is {g} where the Lagrangian gives {w}: \
                  a generator bug, please report it with the TOML"

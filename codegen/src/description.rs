@@ -1,4 +1,5 @@
-//! The robot description file (TOML): schema, parsing and validation.
+//! The robot description file (TOML): parsing and validation (the types
+//! are in `schema.rs`, the name rules in `names.rs`).
 //!
 //! A description is a tree of links connected by joints. Parsing checks the
 //! syntax and the schema (serde, unknown keys rejected); validation checks
@@ -8,17 +9,17 @@
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
-use nalgebra::{Matrix3, SymmetricEigen};
+use nalgebra::SymmetricEigen;
 use serde::Deserialize;
 
-use crate::error::{DescriptionError, KeyPath, Located};
+use crate::error::{DescriptionError, KeyPath, Located, line_column};
+pub use crate::names::{MAX_NAME_CHARS, check_model_name, check_name};
 use crate::reduce::{Chain, reduce};
+use crate::schema::INERTIA_RTOL;
+pub use crate::schema::{Inertia, Joint, JointEffects, JointKind, Limits, Link, Origin};
 
 /// Standard gravity pointing down the base frame's z axis.
 pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
-
-/// Relative tolerance for inertia symmetry and the triangle inequality.
-const INERTIA_RTOL: f64 = 1e-9;
 
 /// A parsed and validated robot description.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,114 +35,6 @@ pub struct Description {
     chain: Chain,
 }
 
-/// A rigid body. A link without `mass` is a massless frame.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Link {
-    pub name: String,
-    /// Mass in kg; absent for a massless frame.
-    pub mass: Option<f64>,
-    /// Centre of mass in the link frame, m.
-    #[serde(default)]
-    pub com: [f64; 3],
-    /// Inertia about the centre of mass, in link-frame axes, kg m^2.
-    #[serde(default)]
-    pub inertia: Option<Inertia>,
-    /// Opt-in to keep an inertia tensor that is not physically realisable
-    /// (violates the triangle inequality). The value says why.
-    #[serde(default)]
-    pub nonphysical_inertia: Option<String>,
-}
-
-/// The six independent entries of a symmetric inertia tensor, or a full
-/// 3x3 matrix (checked for symmetry).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Inertia {
-    pub ixx: f64,
-    pub iyy: f64,
-    pub izz: f64,
-    pub ixy: f64,
-    pub ixz: f64,
-    pub iyz: f64,
-}
-
-/// The joint kinds a description may use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum JointKind {
-    Revolute,
-    Fixed,
-}
-
-/// A joint connecting `parent` to `child`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Joint {
-    pub name: String,
-    #[serde(rename = "type")]
-    pub kind: JointKind,
-    pub parent: String,
-    pub child: String,
-    /// Joint frame in the parent link frame.
-    #[serde(default)]
-    pub origin: Origin,
-    /// Rotation axis in the joint frame; normalized on load.
-    #[serde(default = "default_axis")]
-    pub axis: [f64; 3],
-    #[serde(default)]
-    pub limits: Option<Limits>,
-    /// A revolute joint held at this angle (rad): lumped like a fixed joint.
-    #[serde(default)]
-    pub locked: Option<f64>,
-    #[serde(default)]
-    pub effects: JointEffects,
-}
-
-/// A frame offset: translation, then roll-pitch-yaw (fixed axes x, y, z).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Origin {
-    #[serde(default)]
-    pub xyz: [f64; 3],
-    #[serde(default)]
-    pub rpy: [f64; 3],
-}
-
-/// Joint limits; informative for the generator, used by trajectory tools.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Limits {
-    pub lower: f64,
-    pub upper: f64,
-    #[serde(default)]
-    pub velocity: Option<f64>,
-    #[serde(default)]
-    pub effort: Option<f64>,
-}
-
-/// Per-joint effects added to the rigid-body torque:
-/// `armature*qdd + viscous*qd + coulomb*sign(qd) + offset`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JointEffects {
-    /// Reflected rotor inertia, kg m^2.
-    #[serde(default)]
-    pub armature: f64,
-    /// Viscous friction, N m s/rad.
-    #[serde(default)]
-    pub viscous: f64,
-    /// Coulomb friction level, N m (sign(0) = 0).
-    #[serde(default)]
-    pub coulomb: f64,
-    /// Constant torque offset, N m.
-    #[serde(default)]
-    pub offset: f64,
-}
-
-fn default_axis() -> [f64; 3] {
-    [0.0, 0.0, 1.0]
-}
-
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawDescription {
@@ -153,92 +46,6 @@ struct RawDescription {
     links: Vec<Link>,
     #[serde(default)]
     joints: Vec<Joint>,
-}
-
-impl Inertia {
-    /// The tensor as a symmetric matrix.
-    pub fn matrix(&self) -> Matrix3<f64> {
-        Matrix3::new(
-            self.ixx, self.ixy, self.ixz, self.ixy, self.iyy, self.iyz, self.ixz, self.iyz,
-            self.izz,
-        )
-    }
-
-    /// The six entries of a symmetric matrix (its upper triangle).
-    pub fn from_matrix(m: &Matrix3<f64>) -> Inertia {
-        Inertia {
-            ixx: m[(0, 0)],
-            iyy: m[(1, 1)],
-            izz: m[(2, 2)],
-            ixy: m[(0, 1)],
-            ixz: m[(0, 2)],
-            iyz: m[(1, 2)],
-        }
-    }
-
-    fn values(&self) -> [f64; 6] {
-        [self.ixx, self.iyy, self.izz, self.ixy, self.ixz, self.iyz]
-    }
-}
-
-impl<'de> Deserialize<'de> for Inertia {
-    fn deserialize<D: serde::Deserializer<'de>>(de: D) -> Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(deny_unknown_fields)]
-        struct Entries {
-            ixx: f64,
-            iyy: f64,
-            izz: f64,
-            #[serde(default)]
-            ixy: f64,
-            #[serde(default)]
-            ixz: f64,
-            #[serde(default)]
-            iyz: f64,
-        }
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Form {
-            Entries(Entries),
-            Matrix([[f64; 3]; 3]),
-        }
-        let form = Form::deserialize(de).map_err(|_| {
-            serde::de::Error::custom(
-                "expected `inertia = { ixx = .., iyy = .., izz = .., ixy = .., ixz = .., iyz = .. }` \
-                 or a symmetric 3x3 matrix `[[..], [..], [..]]` of numbers",
-            )
-        })?;
-        Ok(match form {
-            Form::Entries(e) => Inertia {
-                ixx: e.ixx,
-                iyy: e.iyy,
-                izz: e.izz,
-                ixy: e.ixy,
-                ixz: e.ixz,
-                iyz: e.iyz,
-            },
-            Form::Matrix(m) => {
-                let (sym, skew) = symmetric_parts(&m);
-                if skew > INERTIA_RTOL * sym.max(f64::MIN_POSITIVE) {
-                    return Err(serde::de::Error::custom(format!(
-                        "inertia matrix is not symmetric (largest asymmetry {skew:e} kg m^2)"
-                    )));
-                }
-                Inertia::from_matrix(&Matrix3::from_fn(|r, c| m[r][c]))
-            }
-        })
-    }
-}
-
-/// Largest absolute entry and largest asymmetry |m_rc - m_cr| of a matrix.
-fn symmetric_parts(m: &[[f64; 3]; 3]) -> (f64, f64) {
-    let cells = (0..3).flat_map(|r| (0..3).map(move |c| (r, c)));
-    cells.fold((0.0, 0.0), |(largest, skew): (f64, f64), (r, c)| {
-        (
-            largest.max(m[r][c].abs()),
-            skew.max((m[r][c] - m[c][r]).abs()),
-        )
-    })
 }
 
 impl Description {
@@ -286,7 +93,8 @@ impl Description {
         let locate = |e: Located| e.locate(source, path.to_path_buf());
         description.validate().map_err(locate)?;
         description.normalize_axes();
-        description.chain = reduce(&description).map_err(locate)?;
+        description.chain =
+            reduce(&description.links, &description.joints, description.gravity).map_err(locate)?;
         Ok(description)
     }
 
@@ -327,6 +135,11 @@ impl Description {
             validate_joint(joint, at)?;
         }
         self.validate_topology()
+    }
+
+    /// The link with this name.
+    pub fn link(&self, name: &str) -> Option<&Link> {
+        self.links.iter().find(|l| l.name == name)
     }
 
     fn validate_topology(&self) -> Result<(), Located> {
@@ -420,77 +233,6 @@ impl Description {
             )),
         }
     }
-
-    /// The root link: the only link that is no joint's child.
-    pub fn root(&self) -> &Link {
-        self.links
-            .iter()
-            .find(|l| self.joints.iter().all(|j| j.child != l.name))
-            .expect("validated description has a root")
-    }
-
-    /// The link with this name.
-    pub fn link(&self, name: &str) -> Option<&Link> {
-        self.links.iter().find(|l| l.name == name)
-    }
-}
-
-/// Rust keywords (strict and reserved, all editions): a model is a module
-/// named by its file stem, so these cannot be model names.
-const KEYWORDS: [&str; 52] = [
-    "abstract", "as", "async", "await", "become", "box", "break", "const", "continue", "crate",
-    "do", "dyn", "else", "enum", "extern", "false", "final", "fn", "for", "gen", "if", "impl",
-    "in", "let", "loop", "macro", "match", "mod", "move", "mut", "override", "priv", "pub", "ref",
-    "return", "self", "static", "struct", "super", "trait", "true", "try", "type", "typeof",
-    "union", "unsafe", "unsized", "use", "virtual", "where", "while", "yield",
-];
-
-/// A model is a module named by its description's file stem: a snake_case
-/// Rust identifier that is not a keyword.
-pub fn check_model_name(name: &str, toml: &Path) -> Result<(), String> {
-    if KEYWORDS.contains(&name) || name == "_" {
-        return Err(format!(
-            "{}: the model is named by its file stem, which becomes a Rust module name;              `{name}` is a Rust keyword, rename the file (for example `{name}_arm.toml`)",
-            toml.display()
-        ));
-    }
-    let mut chars = name.chars();
-    let valid = chars
-        .next()
-        .is_some_and(|c| c.is_ascii_lowercase() || c == '_')
-        && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
-    if valid {
-        Ok(())
-    } else {
-        Err(format!(
-            "{}: the model is named by its file stem, which must be a snake_case Rust identifier \
-             (lowercase letters, digits, `_`); found `{name}`",
-            toml.display()
-        ))
-    }
-}
-
-/// Longest robot, link or joint name accepted, in characters.
-pub const MAX_NAME_CHARS: usize = 200;
-
-/// Names are data shown in generated comments, reports and files: one line
-/// of printable text. Control characters (a newline could end a comment in
-/// generated code) are refused, not escaped, so every output shows the name
-/// as written.
-pub fn check_name(name: &str) -> Result<(), String> {
-    if let Some(c) = name.chars().find(|c| c.is_control()) {
-        return Err(format!(
-            "name {name:?} contains the control character U+{:04X}; names must be one line of printable text",
-            u32::from(c)
-        ));
-    }
-    if name.chars().count() > MAX_NAME_CHARS {
-        return Err(format!(
-            "name is {} characters long; at most {MAX_NAME_CHARS} are accepted",
-            name.chars().count()
-        ));
-    }
-    Ok(())
 }
 
 fn validate_name(name: &str, at: KeyPath) -> Result<(), Located> {
@@ -660,12 +402,4 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
 
 fn norm(v: &[f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-}
-
-/// 1-based line and column of a byte offset.
-pub(crate) fn line_column(source: &str, offset: usize) -> (usize, usize) {
-    let before = &source[..offset.min(source.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
 }

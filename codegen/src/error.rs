@@ -118,7 +118,7 @@ impl Located {
         let (line, column) = self
             .key
             .span_in(source)
-            .map(|s| crate::description::line_column(source, s.start))
+            .map(|s| line_column(source, s.start))
             .unwrap_or((1, 1));
         DescriptionError::Invalid {
             path,
@@ -128,4 +128,12 @@ impl Located {
             message: self.message,
         }
     }
+}
+
+/// 1-based line and column of a byte offset.
+pub(crate) fn line_column(source: &str, offset: usize) -> (usize, usize) {
+    let before = &source[..offset.min(source.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
 }

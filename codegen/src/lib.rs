@@ -10,7 +10,9 @@
 pub mod description;
 pub mod error;
 pub mod fingerprint;
+pub mod names;
 pub mod reduce;
+mod schema;
 
 #[cfg(feature = "symbolic")]
 mod config;

@@ -6,8 +6,8 @@ use std::collections::HashMap;
 
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
-use crate::description::{Description, Inertia, Joint, JointEffects, JointKind, Limits};
 use crate::error::{KeyPath, Located};
+use crate::schema::{Inertia, Joint, JointEffects, JointKind, Limits, Link};
 
 /// A serial chain of moving bodies, base first.
 #[derive(Debug, Clone, PartialEq)]
@@ -123,8 +123,39 @@ struct Placement {
     translation: Vector3<f64>,
 }
 
-/// Reduces a validated description to its serial chain of moving bodies.
-pub(crate) fn reduce(description: &Description) -> Result<Chain, Located> {
+/// The links and joints of a validated description.
+struct Tree<'a> {
+    links: &'a [Link],
+    joints: &'a [Joint],
+    gravity: [f64; 3],
+}
+
+impl Tree<'_> {
+    /// The link no joint has as its child.
+    fn root(&self) -> &Link {
+        self.links
+            .iter()
+            .find(|l| self.joints.iter().all(|j| j.child != l.name))
+            .expect("validated description has a root")
+    }
+
+    fn link(&self, name: &str) -> Option<&Link> {
+        self.links.iter().find(|l| l.name == name)
+    }
+}
+
+/// Reduces a validated description (its links, joints and gravity) to its
+/// serial chain of moving bodies.
+pub(crate) fn reduce(
+    links: &[Link],
+    joints: &[Joint],
+    gravity: [f64; 3],
+) -> Result<Chain, Located> {
+    let description = &Tree {
+        links,
+        joints,
+        gravity,
+    };
     let mut bodies: Vec<Body> = Vec::new();
     let mut parts: Vec<Vec<Inertial>> = Vec::new();
     let mut parent_body: Vec<Option<usize>> = Vec::new();
@@ -193,7 +224,7 @@ pub(crate) fn reduce(description: &Description) -> Result<Chain, Located> {
     order_serial(description, bodies, parent_body)
 }
 
-fn children_by_parent(description: &Description) -> HashMap<&str, Vec<usize>> {
+fn children_by_parent<'a>(description: &Tree<'a>) -> HashMap<&'a str, Vec<usize>> {
     let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
     for (j, joint) in description.joints.iter().enumerate() {
         children.entry(joint.parent.as_str()).or_default().push(j);
@@ -209,7 +240,7 @@ fn is_moving(joint: &Joint) -> bool {
     joint.kind == JointKind::Revolute && joint.locked.is_none()
 }
 
-fn link_inertial(link: &crate::description::Link) -> Option<Inertial> {
+fn link_inertial(link: &Link) -> Option<Inertial> {
     let mass = link.mass?;
     let inertia = link
         .inertia
@@ -231,7 +262,7 @@ fn missing(link: &str) -> Located {
 /// Checks that each moving body hangs from the previous one and returns the
 /// bodies base first.
 fn order_serial(
-    description: &Description,
+    description: &Tree<'_>,
     bodies: Vec<Body>,
     parent_body: Vec<Option<usize>>,
 ) -> Result<Chain, Located> {
@@ -274,7 +305,7 @@ fn order_serial(
     })
 }
 
-fn joint_index(description: &Description, name: &str) -> usize {
+fn joint_index(description: &Tree<'_>, name: &str) -> usize {
     description
         .joints
         .iter()

@@ -183,10 +183,9 @@ impl Tracer<'_> {
     /// f = m a + U h and n = h x a + int r x U r dm = h x a + axial(U P),
     /// axial(X)_i = X_kj - X_jk for (i, j, k) cyclic. This reuses U instead
     /// of forming I wd, I w and w x I w; written with the inertia I about
-    /// the origin, component i is
-    /// (w_k^2 - w_j^2) (-I_jk) + w_j w_k (I_kk - I_jj) + wd_i I_ii
-    /// - U_ki I_ij + U_ji I_ik, which folds when w or wd has zero
-    /// components (bodies near the base).
+    /// the origin, component i is (w_k^2 - w_j^2) (-I_jk) +
+    /// w_j w_k (I_kk - I_jj) + wd_i I_ii + U_ki (-I_ij) + U_ji I_ik, which
+    /// folds when w or wd has zero components (bodies near the base).
     fn wrench(&mut self, i: usize, motion: &Motion) -> (V3, V3) {
         let body = self.parameters[i];
         let (m, h, inertia) = (body.m, body.h, body.inertia);

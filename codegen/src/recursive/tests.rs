@@ -261,9 +261,8 @@ fn one_number_edits_keep_the_program_shape() {
         let edited = traced_with_edit(&toml, from, to);
         assert_eq!(base.dag.nodes, edited.dag.nodes, "{from} -> {to}");
         assert_eq!(base.dag.derived, edited.dag.derived, "{from} -> {to}");
-        let names = |t: &Traced| -> Vec<String> {
-            t.dag.params.iter().map(|p| p.name.clone()).collect()
-        };
+        let names =
+            |t: &Traced| -> Vec<String> { t.dag.params.iter().map(|p| p.name.clone()).collect() };
         assert_eq!(names(&base), names(&edited), "{from} -> {to}");
         let changed: Vec<(&str, f64, f64)> = base
             .groups
@@ -292,5 +291,9 @@ fn a_zero_becoming_non_zero_is_a_structural_change() {
         chain
     };
     let after = trace(&chain).dag.params.len();
-    assert_eq!(after, before + 1, "the new coefficient becomes a named leaf");
+    assert_eq!(
+        after,
+        before + 1,
+        "the new coefficient becomes a named leaf"
+    );
 }

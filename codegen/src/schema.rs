@@ -1,0 +1,203 @@
+//! The description's types, as the TOML spells them (serde): links, joints,
+//! inertia, origin, limits and joint effects. Parsing and validation are in
+//! `description.rs`.
+
+use nalgebra::Matrix3;
+use serde::Deserialize;
+
+/// Relative tolerance for inertia symmetry and the triangle inequality.
+pub(crate) const INERTIA_RTOL: f64 = 1e-9;
+
+/// A rigid body. A link without `mass` is a massless frame.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Link {
+    pub name: String,
+    /// Mass in kg; absent for a massless frame.
+    pub mass: Option<f64>,
+    /// Centre of mass in the link frame, m.
+    #[serde(default)]
+    pub com: [f64; 3],
+    /// Inertia about the centre of mass, in link-frame axes, kg m^2.
+    #[serde(default)]
+    pub inertia: Option<Inertia>,
+    /// Opt-in to keep an inertia tensor that is not physically realisable
+    /// (violates the triangle inequality). The value says why.
+    #[serde(default)]
+    pub nonphysical_inertia: Option<String>,
+}
+
+/// The six independent entries of a symmetric inertia tensor, or a full
+/// 3x3 matrix (checked for symmetry).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inertia {
+    pub ixx: f64,
+    pub iyy: f64,
+    pub izz: f64,
+    pub ixy: f64,
+    pub ixz: f64,
+    pub iyz: f64,
+}
+
+/// The joint kinds a description may use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointKind {
+    Revolute,
+    Fixed,
+}
+
+/// A joint connecting `parent` to `child`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Joint {
+    pub name: String,
+    #[serde(rename = "type")]
+    pub kind: JointKind,
+    pub parent: String,
+    pub child: String,
+    /// Joint frame in the parent link frame.
+    #[serde(default)]
+    pub origin: Origin,
+    /// Rotation axis in the joint frame; normalized on load.
+    #[serde(default = "default_axis")]
+    pub axis: [f64; 3],
+    #[serde(default)]
+    pub limits: Option<Limits>,
+    /// A revolute joint held at this angle (rad): lumped like a fixed joint.
+    #[serde(default)]
+    pub locked: Option<f64>,
+    #[serde(default)]
+    pub effects: JointEffects,
+}
+
+/// A frame offset: translation, then roll-pitch-yaw (fixed axes x, y, z).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Origin {
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// Joint limits; informative for the generator, used by trajectory tools.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    pub lower: f64,
+    pub upper: f64,
+    #[serde(default)]
+    pub velocity: Option<f64>,
+    #[serde(default)]
+    pub effort: Option<f64>,
+}
+
+/// Per-joint effects added to the rigid-body torque:
+/// `armature*qdd + viscous*qd + coulomb*sign(qd) + offset`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointEffects {
+    /// Reflected rotor inertia, kg m^2.
+    #[serde(default)]
+    pub armature: f64,
+    /// Viscous friction, N m s/rad.
+    #[serde(default)]
+    pub viscous: f64,
+    /// Coulomb friction level, N m (sign(0) = 0).
+    #[serde(default)]
+    pub coulomb: f64,
+    /// Constant torque offset, N m.
+    #[serde(default)]
+    pub offset: f64,
+}
+
+pub(crate) fn default_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+impl Inertia {
+    /// The tensor as a symmetric matrix.
+    pub fn matrix(&self) -> Matrix3<f64> {
+        Matrix3::new(
+            self.ixx, self.ixy, self.ixz, self.ixy, self.iyy, self.iyz, self.ixz, self.iyz,
+            self.izz,
+        )
+    }
+
+    /// The six entries of a symmetric matrix (its upper triangle).
+    pub fn from_matrix(m: &Matrix3<f64>) -> Inertia {
+        Inertia {
+            ixx: m[(0, 0)],
+            iyy: m[(1, 1)],
+            izz: m[(2, 2)],
+            ixy: m[(0, 1)],
+            ixz: m[(0, 2)],
+            iyz: m[(1, 2)],
+        }
+    }
+
+    pub(crate) fn values(&self) -> [f64; 6] {
+        [self.ixx, self.iyy, self.izz, self.ixy, self.ixz, self.iyz]
+    }
+}
+
+impl<'de> Deserialize<'de> for Inertia {
+    fn deserialize<D: serde::Deserializer<'de>>(de: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Entries {
+            ixx: f64,
+            iyy: f64,
+            izz: f64,
+            #[serde(default)]
+            ixy: f64,
+            #[serde(default)]
+            ixz: f64,
+            #[serde(default)]
+            iyz: f64,
+        }
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Form {
+            Entries(Entries),
+            Matrix([[f64; 3]; 3]),
+        }
+        let form = Form::deserialize(de).map_err(|_| {
+            serde::de::Error::custom(
+                "expected `inertia = { ixx = .., iyy = .., izz = .., ixy = .., ixz = .., iyz = .. }` \
+                 or a symmetric 3x3 matrix `[[..], [..], [..]]` of numbers",
+            )
+        })?;
+        Ok(match form {
+            Form::Entries(e) => Inertia {
+                ixx: e.ixx,
+                iyy: e.iyy,
+                izz: e.izz,
+                ixy: e.ixy,
+                ixz: e.ixz,
+                iyz: e.iyz,
+            },
+            Form::Matrix(m) => {
+                let (sym, skew) = symmetric_parts(&m);
+                if skew > INERTIA_RTOL * sym.max(f64::MIN_POSITIVE) {
+                    return Err(serde::de::Error::custom(format!(
+                        "inertia matrix is not symmetric (largest asymmetry {skew:e} kg m^2)"
+                    )));
+                }
+                Inertia::from_matrix(&Matrix3::from_fn(|r, c| m[r][c]))
+            }
+        })
+    }
+}
+
+/// Largest absolute entry and largest asymmetry |m_rc - m_cr| of a matrix.
+fn symmetric_parts(m: &[[f64; 3]; 3]) -> (f64, f64) {
+    let cells = (0..3).flat_map(|r| (0..3).map(move |c| (r, c)));
+    cells.fold((0.0, 0.0), |(largest, skew): (f64, f64), (r, c)| {
+        (
+            largest.max(m[r][c].abs()),
+            skew.max((m[r][c] - m[c][r]).abs()),
+        )
+    })
+}
