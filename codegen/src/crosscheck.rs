@@ -8,6 +8,7 @@ use crate::lagrangian::RigidBodyTorque;
 use crate::program::NodeId;
 use crate::recursive::Traced;
 use crate::reduce::Chain;
+use crate::states::{inputs, uniform};
 
 /// States compared; each is a full evaluation of both forms.
 const STATES: usize = 24;
@@ -60,19 +61,4 @@ fn compare(what: &str, got: &[f64], want: &[f64]) -> Result<(), String> {
         }
     }
     Ok(())
-}
-
-/// Program inputs for a state: per joint sin, cos, qd, qdd, sign(qd).
-fn inputs(q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
-    (0..q.len())
-        .flat_map(|i| [q[i].sin(), q[i].cos(), qd[i], qdd[i], qd[i].signum()])
-        .collect()
-}
-
-/// A deterministic pseudo-random number in [-1, 1).
-fn uniform(state: &mut u64) -> f64 {
-    *state = state
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }

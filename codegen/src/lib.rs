@@ -13,6 +13,8 @@ pub mod fingerprint;
 pub mod names;
 pub mod reduce;
 mod schema;
+#[cfg(any(feature = "symbolic", test))]
+mod states;
 
 #[cfg(feature = "symbolic")]
 mod config;

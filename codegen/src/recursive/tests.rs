@@ -2,6 +2,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::*;
 use crate::description::Description;
+use crate::states::{inputs, uniform};
 use std::path::Path;
 
 const PLANAR: &str = r#"
@@ -31,12 +32,6 @@ const PLANAR: &str = r#"
     child = "fore"
     origin = { xyz = [0.8, 0.0, 0.0] }
 "#;
-
-fn inputs(q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
-    (0..q.len())
-        .flat_map(|i| [q[i].sin(), q[i].cos(), qd[i], qdd[i], qd[i].signum()])
-        .collect()
-}
 
 /// The textbook closed form of the planar two-link arm (gravity along -y).
 fn closed_form(q: &[f64], qd: &[f64], qdd: &[f64]) -> [f64; 2] {
@@ -98,14 +93,6 @@ fn rnea(
         tau[i] = chain.bodies[i].axis.dot(&wrenches[i].1);
     }
     tau
-}
-
-/// A deterministic pseudo-random number in [-1, 1).
-fn uniform(state: &mut u64) -> f64 {
-    *state = state
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }
 
 fn assert_close(what: &str, got: &[f64], want: &[f64]) {
