@@ -14,6 +14,7 @@ use crate::dynamics::model_torques;
 use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed};
 use crate::mlp::{Dataset, Mlp};
 use crate::preprocess::Compared;
+use crate::ranges;
 use crate::study::{self, StudyConfig, mse_per_joint};
 use crate::trajectory::{
     ReadOptions, read_states_csv, write_csv, write_torques, write_torques_csv,
@@ -30,23 +31,23 @@ pub struct StudyRunArgs {
     /// Results folder.
     #[arg(long, default_value = "results")]
     pub out: PathBuf,
-    /// Master seed.
-    #[arg(long, default_value_t = 1)]
+    /// Master seed (any 64-bit number).
+    #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     pub seed: u64,
-    /// Seeds per network.
-    #[arg(long, default_value_t = 5)]
+    /// Seeds per network (1-100).
+    #[arg(long, default_value_t = 5, value_parser = ranges::integer(1, 100, "run again with another --seed"))]
     pub seeds: usize,
-    /// Maximum training epochs per network.
-    #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
+    /// Maximum training epochs per network (1-100000).
+    #[arg(long, default_value_t = StudyConfig::default().max_epochs, value_parser = ranges::integer(1, 100_000, "continue from the written network"))]
     pub epochs: usize,
-    /// Early-stopping patience in epochs.
-    #[arg(long, default_value_t = StudyConfig::default().patience)]
+    /// Early-stopping patience in epochs (1-100000).
+    #[arg(long, default_value_t = StudyConfig::default().patience, value_parser = ranges::integer(1, 100_000, "no patience beyond the epochs is useful"))]
     pub patience: usize,
-    /// Hidden layer widths, comma separated.
-    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden)]
+    /// Hidden layer widths, comma separated (1-8 layers of 1-4096).
+    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden, value_parser = ranges::width)]
     pub hidden: Vec<usize>,
-    /// Adam learning rate.
-    #[arg(long, default_value_t = StudyConfig::default().learning_rate)]
+    /// Adam learning rate (above 0, at most 1).
+    #[arg(long, default_value_t = StudyConfig::default().learning_rate, value_parser = ranges::real(0.0, 1.0, true, "rates above 1 diverge"))]
     pub learning_rate: f64,
     #[arg(long, value_enum, default_value_t)]
     pub format: Format,
@@ -54,8 +55,9 @@ pub struct StudyRunArgs {
 
 impl StudyRunArgs {
     /// The study defaults with these seeds and network settings.
-    fn config(&self) -> StudyConfig {
-        StudyConfig {
+    fn config(&self) -> Result<StudyConfig> {
+        ranges::check_layers(&self.hidden).map_err(anyhow::Error::msg)?;
+        Ok(StudyConfig {
             seed: self.seed,
             seeds: self.seeds,
             max_epochs: self.epochs,
@@ -63,19 +65,20 @@ impl StudyRunArgs {
             hidden: self.hidden.clone(),
             learning_rate: self.learning_rate,
             ..StudyConfig::default()
-        }
+        })
     }
 }
 
 #[derive(Debug, Args)]
 pub struct ReproduceArgs {
-    /// Number of recorded trajectories and of training trajectories.
-    #[arg(long, default_value_t = 14)]
+    /// Number of recorded trajectories (1-1000) and of training trajectories.
+    #[arg(long, default_value_t = 14, value_parser = ranges::integer(1, 1000, "run several studies"))]
     pub trajectories: usize,
-    #[arg(long, default_value_t = 10)]
+    /// Training trajectories, fewer than --trajectories.
+    #[arg(long, default_value_t = 10, value_parser = ranges::integer(1, 999, "record more trajectories"))]
     pub train: usize,
-    /// Seconds per trajectory.
-    #[arg(long, default_value_t = 20.0)]
+    /// Seconds per trajectory (above 0, at most 3600).
+    #[arg(long, default_value_t = 20.0, value_parser = ranges::real(0.0, 3600.0, true, "record several trajectories"))]
     pub duration: f64,
     /// Plant (truth) and nominal (analytical) compiled models.
     #[arg(long, default_value = DEFAULT_PLANT)]
@@ -92,7 +95,7 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
         trajectories: args.trajectories,
         train: args.train,
         duration: args.duration,
-        ..args.run.config()
+        ..args.run.config()?
     };
     let out = &args.run.out;
     run_study(out, args.run.format, |progress| {
@@ -133,10 +136,10 @@ pub struct StudyArgs {
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,
     /// Test on each recording from this time on (s after its start); train before.
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::real(0.0, 1e7, false, "no recording is that long"))]
     pub test_from: f64,
-    /// Training pieces per recording (the networks validate on whole pieces).
-    #[arg(long, default_value_t = 5)]
+    /// Training pieces per recording (1-1000; the networks validate on whole pieces).
+    #[arg(long, default_value_t = 5, value_parser = ranges::integer(1, 1000, "use fewer, longer pieces"))]
     pub train_pieces: usize,
     #[command(flatten)]
     pub input: InputArgs,
@@ -154,7 +157,7 @@ pub fn study_command(args: &StudyArgs) -> Result<()> {
         preprocess: args.filter.resolve(&recordings)?.settings,
         trajectories: recordings.len() * (args.train_pieces + 1),
         train: recordings.len() * args.train_pieces,
-        ..args.run.config()
+        ..args.run.config()?
     };
     let split = study::MeasuredSplit {
         test_from: args.test_from,
@@ -179,12 +182,13 @@ pub struct SimulateArgs {
     /// Output folder for trajectory_NN.csv files.
     #[arg(long, default_value = "recordings")]
     pub out: PathBuf,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     pub seed: u64,
-    /// Number of trajectories.
-    #[arg(long, default_value_t = 14)]
+    /// Number of trajectories (1-1000).
+    #[arg(long, default_value_t = 14, value_parser = ranges::integer(1, 1000, "run several times with other --seed and --out"))]
     pub count: usize,
-    #[arg(long, default_value_t = 20.0)]
+    /// Seconds per trajectory (above 0, at most 3600).
+    #[arg(long, default_value_t = 20.0, value_parser = ranges::real(0.0, 3600.0, true, "record several trajectories"))]
     pub duration: f64,
     #[arg(long, default_value = DEFAULT_PLANT)]
     pub plant: String,
@@ -292,12 +296,13 @@ pub struct TrainArgs {
     /// Model file to write (JSON).
     #[arg(long)]
     pub out: PathBuf,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = ranges::seed)]
     pub seed: u64,
-    /// Hidden layer widths, comma separated.
-    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden)]
+    /// Hidden layer widths, comma separated (1-8 layers of 1-4096).
+    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden, value_parser = ranges::width)]
     pub hidden: Vec<usize>,
-    #[arg(long, default_value_t = StudyConfig::default().max_epochs)]
+    /// Maximum training epochs (1-100000).
+    #[arg(long, default_value_t = StudyConfig::default().max_epochs, value_parser = ranges::integer(1, 100_000, "continue from the written network"))]
     pub epochs: usize,
     /// The files already carry filtered qd and qdd.
     #[arg(long)]
@@ -311,6 +316,7 @@ pub struct TrainArgs {
 }
 
 pub fn train(args: &TrainArgs) -> Result<()> {
+    ranges::check_layers(&args.hidden).map_err(anyhow::Error::msg)?;
     let trajectories = if args.preprocessed {
         args.data
             .iter()
@@ -389,6 +395,19 @@ pub struct EvaluateArgs {
 pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     let model = find_model(&args.model)?;
     let network = args.nn.as_ref().map(Mlp::load).transpose()?;
+    if let (Some(n), Some(path)) = (&network, &args.nn) {
+        let dof = model.dof();
+        if n.n_inputs() != 3 * dof || n.n_outputs() != dof {
+            bail!(
+                "{}: the network maps {} inputs to {} torques; model `{}` has {dof} joints \
+                 (3 x {dof} inputs q, qd, qdd and {dof} torques): pass the --model it was trained for",
+                path.display(),
+                n.n_inputs(),
+                n.n_outputs(),
+                model.name()
+            );
+        }
+    }
     let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
     let pipeline = args.filter.resolve(&recordings)?;
     let mut compared = Vec::new();
@@ -547,6 +566,19 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         (None, Some(path)) => path,
         (None, None) => PathBuf::from(format!("models/{}.toml", model.name())),
     };
+    let on_disk = std::fs::read_to_string(&toml)
+        .with_context(|| format!("{}: cannot read", toml.display()))?;
+    if on_disk.replace("\r\n", "\n") != model.description().replace("\r\n", "\n") {
+        bail!(
+            "{}: the file is not the description `{}` was built from (an earlier --apply \
+             or an edit since the build), so applying this diagnosis would count its effects \
+             twice; rebuild (`cargo build --release`) or diagnose the file itself \
+             (`--model {}`), then --apply",
+            toml.display(),
+            model.name(),
+            toml.display()
+        );
+    }
     let description = crate::dynamics::parsed_description(model)?;
     let last = description
         .chain()

@@ -31,6 +31,7 @@ const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
 impl Described {
     /// Reads and validates the description at `path` (named by its stem).
     pub fn load(path: &Path) -> Result<&'static Described> {
+        crate::output::note_input(path);
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("reading model description {}", path.display()))?;
         let stem = path

@@ -233,6 +233,7 @@ pub fn import_urdf(
     source_label: &str,
     options: &ImportOptions,
 ) -> Result<Imported, ImportError> {
+    check_nesting(urdf_text)?;
     let robot =
         urdf_rs::read_from_string(urdf_text).map_err(|e| ImportError::Parse(e.to_string()))?;
     let tree = Tree::new(&robot)?;
@@ -255,6 +256,13 @@ pub fn import_urdf(
     attach_payloads(&tree, &chain, &options.attach, &mut links, &mut joints)?;
     let name = options.name.clone().unwrap_or_else(|| robot.name.clone());
     check_names(&name, options.name.is_some(), &links, &joints)?;
+    if links.iter().all(|l| l.body.is_none()) {
+        return Err(ImportError::Structure(
+            "no link on the imported chain has an <inertial> with a mass: the arm would be \
+             massless and every torque zero; add the links' <inertial> elements"
+                .into(),
+        ));
+    }
     let header = header(source_label, &robot.name, &tree, &chain, options);
     let body = render(&name, gravity, &links, &joints);
     Ok(Imported {
@@ -1078,6 +1086,46 @@ fn payload_body(a: &Attachment) -> Result<Body, ImportError> {
     })
 }
 
+/// Deepest element nesting accepted; a URDF is a few levels deep, and the
+/// XML parser recurses per level (30,000 levels overflowed its stack).
+const MAX_NESTING: usize = 64;
+
+/// Refuses absurdly nested XML before the recursive parser sees it (one
+/// pass: an opening tag counts when its `>` is not preceded by `/`).
+fn check_nesting(text: &str) -> Result<(), ImportError> {
+    let (mut depth, mut deepest) = (0usize, 0usize);
+    // Inside an opening tag, a closing tag, or neither.
+    let (mut opening, mut closing) = (false, false);
+    let mut previous = b' ';
+    for (i, pair) in text.as_bytes().windows(2).enumerate() {
+        let (b, next) = (pair[0], pair[1]);
+        match b {
+            b'<' if next == b'/' => closing = true,
+            b'<' if next != b'?' && next != b'!' => opening = true,
+            b'>' if closing => {
+                closing = false;
+                depth = depth.saturating_sub(1);
+            }
+            b'>' if opening => {
+                opening = false;
+                if previous != b'/' {
+                    depth += 1;
+                    deepest = deepest.max(depth);
+                }
+            }
+            _ => {}
+        }
+        previous = b;
+        if deepest > MAX_NESTING {
+            return Err(ImportError::Parse(format!(
+                "elements nested more than {MAX_NESTING} deep (near byte {i}); a URDF is a few \
+                 levels deep"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Refuses names a description would refuse (control characters, such as
 /// a newline written `&#10;` in the URDF), naming the element to rename.
 fn check_names(
@@ -1389,6 +1437,27 @@ mod tests {
             ..ImportOptions::default()
         };
         assert!(error(&arm(&[]), &bad).starts_with("--name"));
+    }
+
+    #[test]
+    fn deep_nesting_and_massless_arms_are_refused() {
+        let deep = format!(
+            "<robot name='r'>{}{}</robot>",
+            "<x>".repeat(30_000),
+            "</x>".repeat(30_000)
+        );
+        assert!(error(&deep, &ImportOptions::default()).contains("nested more than"));
+        let shallow = arm(&["<gazebo><plugin><a/></plugin></gazebo>".to_string()]);
+        assert!(run(&shallow, &ImportOptions::default()).is_ok());
+        let massless = robot(&[
+            link("base"),
+            link("a"),
+            link("b"),
+            joint("J1", "revolute", "base", "a"),
+            joint("J2", "revolute", "a", "b"),
+        ]);
+        let message = error(&massless, &ImportOptions::default());
+        assert!(message.contains("massless"), "{message}");
     }
 
     #[test]

@@ -37,6 +37,7 @@ pub struct ImportUrdfArgs {
 }
 
 pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
+    crate::output::note_input(&args.urdf);
     let text = std::fs::read_to_string(&args.urdf)
         .with_context(|| format!("reading {}", args.urdf.display()))?;
     let options = ImportOptions {

@@ -9,6 +9,7 @@ use nalgebra::DMatrix;
 
 use crate::cli::AngleArg;
 use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
+use crate::ranges;
 use crate::rosbag::{BagOptions, JointStates, read_joint_states};
 use crate::trajectory::{ReadOptions, Trajectory, TrajectoryError, read_csv, uniform};
 
@@ -20,7 +21,7 @@ pub struct InputArgs {
     pub angles: AngleArg,
     /// Resample to this uniform rate (Hz) by linear interpolation [default:
     /// files with jittery timestamps are resampled at their median rate].
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::real(0.0, 1e6, true, "no joint log is sampled faster"))]
     pub resample: Option<f64>,
     /// Map a file column to a contract column, e.g. `--column time=t --column pos1=q1`.
     #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = parse_mapping)]
@@ -138,20 +139,20 @@ pub struct FilterArgs {
     #[arg(long, value_enum, default_value_t)]
     pub preset: Preset,
     /// auto: the low-pass cut-off in Hz instead of the chosen one.
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", value_parser = ranges::real(0.0, 1e5, true, "no arm moves that fast"))]
     pub cutoff: Option<f64>,
     /// auto: the decimated sample rate in Hz instead of 10x the cut-off.
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", value_parser = ranges::real(0.0, 1e6, true, "no joint log is sampled faster"))]
     pub rate: Option<f64>,
     /// thesis: keep every n-th sample [default: 10].
-    #[arg(long)]
+    #[arg(long, value_parser = ranges::integer(1, 10_000, "resample with --rate instead"))]
     pub downsample: Option<usize>,
     /// thesis: velocity filter, `sma` (centred moving average), `sg`
     /// (Savitzky-Golay, cubic) or `none` [default: sma].
     #[arg(long)]
     pub filter: Option<String>,
     /// thesis: filter window in seconds at the downsampled rate [default: 0.4].
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", value_parser = ranges::real(0.0, 3600.0, true, "no filter window is that long"))]
     pub window: Option<f64>,
     /// thesis: also smooth the torque with the acceleration's filter (auto
     /// always filters the torque like the states).

@@ -59,7 +59,7 @@ pub fn write(result: &StudyResult, figures: &Figures<'_>, out: &Path) -> Result<
     write_markdown(out.join("results.md"), &table)?;
     write_csv(out.join("results.csv"), &table)?;
     let json = serde_json::to_string_pretty(result)?;
-    std::fs::write(out.join("results.json"), json)
+    crate::output::write(&out.join("results.json"), json.as_bytes())
         .with_context(|| format!("writing {}", out.join("results.json").display()))?;
     let plots = out.join("plots");
     std::fs::create_dir_all(&plots)?;

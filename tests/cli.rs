@@ -217,7 +217,7 @@ fn an_implausible_value_is_a_located_error() {
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(2), "{command}: {stderr}");
         assert!(
-            stderr.contains("bad.csv: sample 124") && stderr.contains("qd1 = 1e200"),
+            stderr.contains("bad.csv: line 125, column 'qd1'") && stderr.contains("1e200"),
             "{command}: {stderr}"
         );
     }

@@ -7,6 +7,7 @@ mod dynamics;
 mod freshness;
 mod generated_code;
 mod hidden_effects;
+mod hostile;
 mod lumping;
 mod study;
 mod util;

@@ -135,7 +135,7 @@ fn add_joint_effect(doc: &mut DocumentMut, joint: &str, key: &str, delta: f64) -
         );
     }
     let effects = table.get_mut("effects").context("effects")?;
-    let current = effects.get(key).and_then(Item::as_float).unwrap_or(0.0);
+    let current = effects.get(key).and_then(number).unwrap_or(0.0);
     let updated = current + delta;
     match effects {
         Item::Value(Value::InlineTable(t)) => {
@@ -307,13 +307,13 @@ pub fn apply_to_file(
     let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("model");
     codegen::Description::parse(&updated, stem, path)
         .context("the updated description does not validate")?;
+    // The first backup is the original: a later --apply never replaces it.
     let backup = path.with_extension("toml.bak");
-    std::fs::copy(path, &backup)
-        .with_context(|| format!("{}: cannot write backup", backup.display()))?;
-    let temporary = path.with_extension("toml.tmp");
-    std::fs::write(&temporary, updated)
-        .with_context(|| format!("{}: cannot write", temporary.display()))?;
-    std::fs::rename(&temporary, path)
+    if !backup.exists() {
+        crate::output::write(&backup, source.as_bytes())
+            .with_context(|| format!("{}: cannot write backup", backup.display()))?;
+    }
+    crate::output::replace_input(path, updated.as_bytes())
         .with_context(|| format!("{}: cannot replace", path.display()))?;
     Ok(backup)
 }

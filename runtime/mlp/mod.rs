@@ -320,7 +320,7 @@ impl Mlp {
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), TrainError> {
         let path = path.as_ref();
         let file = ModelFile::from_model(self);
-        crate::trajectory::write_atomically(path, |w| {
+        crate::output::write_with(path, |w| {
             serde_json::to_writer(&mut *w, &file).map_err(std::io::Error::other)
         })
         .map_err(|source| TrainError::Io {
@@ -332,6 +332,7 @@ impl Mlp {
     /// Reads a model written by [`Mlp::save`], checking its version and shapes.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, TrainError> {
         let path = path.as_ref();
+        crate::output::note_input(path);
         let text = std::fs::read_to_string(path).map_err(|source| TrainError::Io {
             path: path.to_owned(),
             source,
@@ -440,6 +441,9 @@ impl ModelFile {
     }
 }
 
+/// Largest magnitude of any number in a network file.
+const MAX_PARAMETER: f64 = 1e6;
+
 fn layer_from_file(
     i: usize,
     l: &LayerFile,
@@ -450,6 +454,16 @@ fn layer_from_file(
     if !rows_ok || l.bias.len() != fan_out {
         return Err(format!(
             "layer {i} is not {fan_in}x{fan_out} with {fan_out} biases"
+        ));
+    }
+    let values = l.weights.iter().flatten().chain(&l.bias);
+    if let Some(v) = values
+        .into_iter()
+        .find(|v| v.abs() > MAX_PARAMETER || v.is_nan())
+    {
+        return Err(format!(
+            "layer {i} holds {v:e}; a trained network's weights and biases stay within \
+             {MAX_PARAMETER:e} (larger ones overflow its outputs)"
         ));
     }
     let w = DMatrix::from_fn(fan_in, fan_out, |r, c| l.weights[r][c]);
@@ -468,8 +482,18 @@ fn scaler_from_file(
     if mean.len() != n || std.len() != n {
         return Err(format!("{which} normalization stats must have {n} entries"));
     }
-    if std.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-        return Err(format!("{which}_std must be positive and finite"));
+    if std
+        .iter()
+        .any(|s| !(s.is_finite() && *s > 0.0 && *s <= MAX_PARAMETER))
+    {
+        return Err(format!(
+            "{which}_std must be positive and at most {MAX_PARAMETER:e}"
+        ));
+    }
+    if mean.iter().any(|m| m.abs() > MAX_PARAMETER || m.is_nan()) {
+        return Err(format!(
+            "{which}_mean must be finite and within {MAX_PARAMETER:e}"
+        ));
     }
     Ok(Scaler { mean, std })
 }

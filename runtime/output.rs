@@ -1,0 +1,180 @@
+//! The one writer of every output file.
+//!
+//! A file is written to an unpredictably named temporary file in its own
+//! directory (the `tempfile` crate), synced, then renamed over the
+//! destination, so a reader never sees half a file and a failure leaves the
+//! old one. A symbolic link is followed (its target is replaced, the link
+//! stays), the permissions of a replaced file are kept, and a read-only file
+//! is refused, not replaced. In the `sdnn` command (`protect_inputs`, called
+//! by `main`) the files read are noted as inputs (`note_input`) and writing
+//! over one of them is refused: a command's outputs never destroy the data
+//! they came from. `replace_input` is the one deliberate exception
+//! (`diagnose --apply` edits the TOML it read). A library user, who may
+//! well rewrite a file it read, is not restricted.
+
+use std::fs;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Canonical paths of the files this process has read.
+static INPUTS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Whether outputs over inputs are refused (the `sdnn` command).
+static PROTECT: AtomicBool = AtomicBool::new(false);
+
+/// From now on, no output of this process may replace a file it read.
+pub fn protect_inputs() {
+    PROTECT.store(true, Ordering::Relaxed);
+}
+
+/// Notes that this process reads `path` (see `protect_inputs`).
+pub fn note_input(path: &Path) {
+    if !PROTECT.load(Ordering::Relaxed) {
+        return;
+    }
+    if let Ok(canonical) = fs::canonicalize(path) {
+        let mut inputs = INPUTS.lock().unwrap_or_else(|e| e.into_inner());
+        if !inputs.contains(&canonical) {
+            inputs.push(canonical);
+        }
+    }
+}
+
+/// Writes `bytes` to `path` (see the module documentation).
+pub fn write(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    write_with(path, |w| w.write_all(bytes))
+}
+
+/// Writes what `body` produces to `path` (see the module documentation).
+pub fn write_with(
+    path: &Path,
+    body: impl FnOnce(&mut BufWriter<&mut fs::File>) -> io::Result<()>,
+) -> io::Result<()> {
+    let target = destination(path)?;
+    if is_input(&target) {
+        return Err(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            "this command reads that file; refusing to write its output over it \
+             (choose another output path)",
+        ));
+    }
+    replace(&target, body)
+}
+
+/// Replaces an input file on purpose (an edit of the file read), with the
+/// same guarantees otherwise.
+pub fn replace_input(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let target = destination(path)?;
+    replace(&target, |w| w.write_all(bytes))
+}
+
+/// The file to write: the target of a symbolic link, else `path`.
+fn destination(path: &Path) -> io::Result<PathBuf> {
+    if path.file_name().is_none() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "not a file path (it has no file name)",
+        ));
+    }
+    match fs::symlink_metadata(path) {
+        Ok(meta) if meta.file_type().is_symlink() => fs::canonicalize(path),
+        Ok(meta) if meta.is_dir() => Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "is a directory; give a file path",
+        )),
+        _ => Ok(path.to_path_buf()),
+    }
+}
+
+fn is_input(target: &Path) -> bool {
+    let Ok(canonical) = fs::canonicalize(target) else {
+        return false; // does not exist yet
+    };
+    let inputs = INPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    inputs.contains(&canonical)
+}
+
+fn replace(
+    target: &Path,
+    body: impl FnOnce(&mut BufWriter<&mut fs::File>) -> io::Result<()>,
+) -> io::Result<()> {
+    let existing = fs::metadata(target).ok();
+    if existing
+        .as_ref()
+        .is_some_and(|m| m.permissions().readonly())
+    {
+        return Err(io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            "is read-only; not replaced (make it writable or choose another path)",
+        ));
+    }
+    let dir = target
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut temporary = tempfile::Builder::new()
+        .prefix(".sdnn-")
+        .suffix(".tmp")
+        .tempfile_in(dir)?;
+    {
+        let mut w = BufWriter::new(temporary.as_file_mut());
+        body(&mut w)?;
+        w.flush()?;
+    }
+    temporary.as_file().sync_all()?;
+    if let Some(meta) = existing {
+        fs::set_permissions(temporary.path(), meta.permissions())?;
+    }
+    temporary.persist(target).map_err(|e| e.error)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_and_replaces_without_leftovers() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.txt");
+        write(&path, b"one").unwrap();
+        write(&path, b"two").unwrap();
+        assert_eq!(fs::read_to_string(&path).unwrap(), "two");
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn links_are_followed_and_permissions_kept() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("real.toml");
+        fs::write(&real, "a").unwrap();
+        fs::set_permissions(&real, fs::Permissions::from_mode(0o640)).unwrap();
+        let link = dir.path().join("link.toml");
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        write(&link, b"b").unwrap();
+        assert!(
+            fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(fs::read_to_string(&real).unwrap(), "b");
+        let mode = fs::metadata(&real).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o640);
+        fs::set_permissions(&real, fs::Permissions::from_mode(0o444)).unwrap();
+        let error = write(&real, b"c").unwrap_err();
+        assert!(error.to_string().contains("read-only"), "{error}");
+        assert_eq!(fs::read_to_string(&real).unwrap(), "b");
+    }
+
+    #[test]
+    fn a_directory_or_a_missing_folder_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(write(dir.path(), b"x").is_err());
+        assert!(write(&dir.path().join("no/such/dir/out.txt"), b"x").is_err());
+        assert!(write(Path::new("/"), b"x").is_err());
+    }
+}

@@ -1,0 +1,203 @@
+//! Hostile input through the release binary: huge numbers, outputs over
+//! inputs, read-only and linked files, implausible values, mismatched
+//! networks. Each case must end in a clear error (exit 2) or a correct
+//! result, never a panic, a hang or a destroyed input.
+
+use std::process::Output;
+
+use crate::util::{Dir, sdnn};
+
+/// The run failed cleanly: exit code 2 and a message containing `needle`.
+fn refused(run: &Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains(needle), "expected `{needle}` in: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+const STATES: &str = "q1,q2,qd1,qd2,qdd1,qdd2\n0.1,0.2,0.3,0.4,0.5,0.6\n";
+
+#[test]
+fn huge_counts_and_widths_are_refused_while_parsing() {
+    let huge = "18446744073709551615";
+    for args in [
+        vec!["reproduce", "--seeds", huge],
+        vec!["reproduce", "--trajectories", huge],
+        vec!["simulate", "--count", huge],
+        vec![
+            "study",
+            "--model",
+            "planar_2link",
+            "--data",
+            "x.csv",
+            "--test-from",
+            "1",
+            "--train-pieces",
+            "1844674407370955162",
+        ],
+    ] {
+        refused(&sdnn(&args), "at most");
+    }
+    let dir = Dir::new();
+    let data = dir.write("d.csv", "t,q1,qd1,tau1\n0,0,0,0\n");
+    let out = dir.path().join("net.json");
+    for hidden in ["18446744073709551615", "100000000,100000000"] {
+        let run = sdnn(&[
+            "train",
+            data.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--hidden",
+            hidden,
+        ]);
+        refused(&run, "at most");
+    }
+    let run = sdnn(&["reproduce", "--duration", "nan"]);
+    refused(&run, "finite");
+}
+
+#[test]
+fn an_output_never_replaces_the_commands_input() {
+    let dir = Dir::new();
+    let states = dir.write("states.csv", STATES);
+    let path = states.to_str().unwrap();
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        path,
+        "--output",
+        path,
+    ]);
+    refused(&run, "refusing to write its output over it");
+    assert_eq!(std::fs::read_to_string(&states).unwrap(), STATES);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_read_only_output_is_refused_and_a_linked_one_written_through() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = Dir::new();
+    let states = dir.write("states.csv", STATES);
+    let out = dir.write("tau.csv", "keep\n");
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        states.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    refused(&run, "read-only");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "keep\n");
+    let target = dir.write("target.csv", "old\n");
+    let link = dir.path().join("link.csv");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        states.to_str().unwrap(),
+        "--output",
+        link.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(
+        std::fs::read_to_string(&target)
+            .unwrap()
+            .starts_with("tau1,tau2")
+    );
+}
+
+#[test]
+fn implausible_values_and_time_steps_are_located_errors() {
+    let dir = Dir::new();
+    let fast = dir.write(
+        "fast.csv",
+        "q1,q2,qd1,qd2,qdd1,qdd2\n0.1,0.2,1e200,0.4,0.5,0.6\n",
+    );
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        fast.to_str().unwrap(),
+    ]);
+    refused(&run, "line 2, column 'qd1'");
+    let tiny = dir.write(
+        "tiny.csv",
+        "t,q1,q2,qd1,qd2,tau1,tau2\n0,0,0,0,0,0,0\n1e-320,0,0,0,0,0,0\n",
+    );
+    let out = dir.path().join("out");
+    let run = sdnn(&[
+        "preprocess",
+        tiny.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    refused(&run, "column 't'");
+}
+
+#[test]
+fn a_network_for_another_arm_is_refused() {
+    let dir = Dir::new();
+    let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
+    for k in 0..400 {
+        let t = f64::from(k) * 0.01;
+        rows.push_str(&format!(
+            "{t},{},{},0,0,0,0,{},0\n",
+            t.sin(),
+            t.cos(),
+            t.sin()
+        ));
+    }
+    let data = dir.write("d.csv", &rows);
+    let more = dir.write("e.csv", &rows);
+    let net = dir.path().join("net.json");
+    let run = sdnn(&[
+        "train",
+        data.to_str().unwrap(),
+        more.to_str().unwrap(),
+        "--out",
+        net.to_str().unwrap(),
+        "--epochs",
+        "2",
+        "--hidden",
+        "4",
+        "--preprocessed",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let mut three = String::from("t,q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n");
+    for k in 0..600 {
+        three.push_str(&format!("{},0,0,0,0,0,0,0,0,0\n", f64::from(k) * 0.01));
+    }
+    let three = dir.write("three.csv", &three);
+    let run = sdnn(&[
+        "evaluate",
+        "--model",
+        "kinova_gen3_lite_3dof",
+        "--nn",
+        net.to_str().unwrap(),
+        "--data",
+        three.to_str().unwrap(),
+    ]);
+    refused(&run, "pass the --model it was trained for");
+}
