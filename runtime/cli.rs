@@ -6,13 +6,12 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 use nalgebra::DMatrix;
 
-use crate::dynamics::{Dynamics, model, model_names};
-use crate::trajectory::{
-    AngleUnit, ReadOptions, Units, read_states_csv, write_torques, write_torques_csv,
-};
+pub use crate::args::{AngleArg, Format, find_model, model_path};
+
+use crate::trajectory::{ReadOptions, read_states_csv, write_torques, write_torques_csv};
 
 /// Exact arm dynamics, physics-synthesized data and model diagnosis.
 #[derive(Debug, Parser)]
@@ -20,33 +19,6 @@ use crate::trajectory::{
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
-}
-
-/// Output format of results printed to standard output.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
-pub enum Format {
-    #[default]
-    Text,
-    Json,
-}
-
-/// Angle unit of input files.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
-pub enum AngleArg {
-    #[default]
-    Rad,
-    Deg,
-}
-
-impl From<AngleArg> for Units {
-    fn from(a: AngleArg) -> Units {
-        Units {
-            angles: match a {
-                AngleArg::Rad => AngleUnit::Radians,
-                AngleArg::Deg => AngleUnit::Degrees,
-            },
-        }
-    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -57,15 +29,22 @@ pub enum Command {
         /// Model name (a models/*.toml file stem); see `sdnn models`.
         #[arg(long)]
         model: String,
-        /// State file.
+        /// State file (`-`: standard input); a recording's `t` and `tau`
+        /// columns are allowed and not used.
         #[arg(long)]
         input: PathBuf,
-        /// Torque file to write; standard output if absent.
+        /// Torque file to write; standard output if absent or `-`.
         #[arg(long)]
         output: Option<PathBuf>,
         /// Unit of q, qd and qdd in the input.
         #[arg(long, value_enum, default_value_t)]
         angles: AngleArg,
+        /// Map a file column to a contract column, e.g. `--column pos1=q1`.
+        #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = crate::inputs::parse_mapping)]
+        columns: Vec<(String, String)>,
+        /// File columns to ignore (extra columns are an error otherwise).
+        #[arg(long = "ignore-column", value_name = "NAME")]
+        ignored: Vec<String>,
     },
     /// List the compiled models.
     Models {
@@ -117,7 +96,19 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
             input,
             output,
             angles,
-        } => tau(&model, &input, output.as_deref(), angles),
+            columns,
+            ignored,
+        } => {
+            let options = ReadOptions {
+                units: angles.into(),
+                min_samples: 1,
+                renames: columns.into_iter().collect(),
+                ignored,
+                ..ReadOptions::default()
+            };
+            let output = output.filter(|p| p != std::path::Path::new("-"));
+            tau(&model, &input, output.as_deref(), options)
+        }
         Command::Models { format } => models(format),
         Command::Reproduce(args) => crate::commands::reproduce(&args),
         Command::Study(args) => crate::commands::study_command(&args),
@@ -133,38 +124,16 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
     }
 }
 
-/// The compiled model with this name, or an error listing the names.
-pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
-    if let Some(path) = model_path(name) {
-        return Ok(crate::described::Described::load(&path)?);
-    }
-    model(name).with_context(|| {
-        format!(
-            "no compiled model named `{name}`; compiled models: {} (add models/{name}.toml and rebuild, or pass a description file path ending in .toml)",
-            model_names().join(", ")
-        )
-    })
-}
-
-/// The description file a `--model` argument names, when it is a path
-/// (ends in `.toml`) rather than a compiled model's name.
-pub fn model_path(name: &str) -> Option<std::path::PathBuf> {
-    name.ends_with(".toml")
-        .then(|| std::path::PathBuf::from(name))
-}
-
 fn tau(
     name: &str,
     input: &std::path::Path,
     output: Option<&std::path::Path>,
-    angles: AngleArg,
+    options: ReadOptions,
 ) -> Result<()> {
     let model = find_model(name)?;
     let options = ReadOptions {
-        units: angles.into(),
         dof: Some(model.dof()),
-        min_samples: 1,
-        ..ReadOptions::default()
+        ..options
     };
     let states = read_states_csv(input, &options)?;
     let mut tau = DMatrix::zeros(states.len(), model.dof());

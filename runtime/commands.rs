@@ -7,7 +7,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::DMatrix;
 
-use crate::cli::{AngleArg, Format, find_model};
+use crate::args::{AngleArg, Format, find_model};
 use crate::diagnose::Diagnosis;
 use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
@@ -561,7 +561,7 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
 /// Writes the named effects into the description and says how to see the
 /// gap shrink.
 fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Result<()> {
-    let toml = match (&args.toml, crate::cli::model_path(&args.model)) {
+    let toml = match (&args.toml, crate::args::model_path(&args.model)) {
         (Some(path), _) => path.clone(),
         (None, Some(path)) => path,
         (None, None) => PathBuf::from(format!("models/{}.toml", model.name())),

@@ -7,7 +7,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 use nalgebra::DMatrix;
 
-use crate::cli::AngleArg;
+use crate::args::AngleArg;
 use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
 use crate::ranges;
 use crate::rosbag::{BagOptions, JointStates, read_joint_states};
@@ -39,7 +39,7 @@ pub struct InputArgs {
     pub joints: Option<Vec<String>>,
 }
 
-fn parse_mapping(text: &str) -> Result<(String, String), String> {
+pub fn parse_mapping(text: &str) -> Result<(String, String), String> {
     match text.split_once('=') {
         Some((from, to)) if !from.is_empty() && !to.is_empty() => {
             Ok((from.to_string(), to.to_string()))

@@ -5,6 +5,7 @@
 //! [`models`]; [`oracle`] is an independent numeric recursive Newton-Euler
 //! built from the same descriptions, used to verify them.
 
+pub mod args;
 pub mod cli;
 pub mod commands;
 pub mod described;

@@ -477,13 +477,15 @@ const TRAJECTORY_SCHEMA: Schema = Schema {
     expected: "t, q1..qN, qd1..qdN, tau1..tauN and optionally qdd1..qddN",
 };
 
+/// States for `sdnn tau`: a recording's `t` and `tau` columns may be
+/// present (they are read and not used).
 const STATES_SCHEMA: Schema = Schema {
-    time: Presence::Forbidden,
+    time: Presence::Optional,
     channels: [
         Presence::Required,
         Presence::Required,
         Presence::Required,
-        Presence::Forbidden,
+        Presence::Optional,
     ],
     expected: "q1..qN, qd1..qdN, qdd1..qddN",
 };
@@ -649,12 +651,17 @@ fn read_table(path: &Path, opts: &ReadOptions, schema: &Schema) -> Result<Table,
         path: path.to_owned(),
         source,
     };
-    crate::output::note_input(path);
-    let file = File::open(path).map_err(io_err)?;
+    // `-` is standard input.
+    let source: Box<dyn io::Read> = if path == Path::new("-") {
+        Box::new(io::stdin().lock())
+    } else {
+        crate::output::note_input(path);
+        Box::new(File::open(path).map_err(io_err)?)
+    };
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .flexible(true)
-        .from_reader(io::BufReader::new(file));
+        .from_reader(io::BufReader::new(source));
     let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
     if header.is_empty() {
         return Err(TrajectoryError::MissingHeader {

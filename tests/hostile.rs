@@ -201,3 +201,55 @@ fn a_network_for_another_arm_is_refused() {
     ]);
     refused(&run, "pass the --model it was trained for");
 }
+
+#[test]
+fn tau_reads_a_recording_from_standard_input_with_column_options() {
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+    let recording =
+        "t,pos1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2,extra\n0,0.1,0.2,0.3,0.4,0.5,0.6,0,0,9\n";
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sdnn"))
+        .args([
+            "tau",
+            "--model",
+            "planar_2link",
+            "--input",
+            "-",
+            "--output",
+            "-",
+        ])
+        .args(["--column", "pos1=q1", "--ignore-column", "extra"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run sdnn");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(recording.as_bytes())
+        .unwrap();
+    let run = child.wait_with_output().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let from_file = {
+        let dir = Dir::new();
+        let states = dir.write("s.csv", STATES);
+        sdnn(&[
+            "tau",
+            "--model",
+            "planar_2link",
+            "--input",
+            states.to_str().unwrap(),
+        ])
+        .stdout
+    };
+    assert_eq!(
+        run.stdout, from_file,
+        "the same states give the same torques"
+    );
+}

@@ -1,0 +1,55 @@
+//! Argument types the commands share (output format, angle unit) and the
+//! lookup of `--model`: a compiled model's name or a description file.
+
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+
+use crate::dynamics::{Dynamics, model, model_names};
+use crate::trajectory::{AngleUnit, Units};
+
+/// Output format of results printed to standard output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum Format {
+    #[default]
+    Text,
+    Json,
+}
+
+/// Angle unit of input files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum AngleArg {
+    #[default]
+    Rad,
+    Deg,
+}
+
+impl From<AngleArg> for Units {
+    fn from(a: AngleArg) -> Units {
+        Units {
+            angles: match a {
+                AngleArg::Rad => AngleUnit::Radians,
+                AngleArg::Deg => AngleUnit::Degrees,
+            },
+        }
+    }
+}
+
+/// The compiled model with this name, or an error listing the names.
+pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
+    if let Some(path) = model_path(name) {
+        return Ok(crate::described::Described::load(&path)?);
+    }
+    model(name).with_context(|| {
+        format!(
+            "no compiled model named `{name}`; compiled models: {} (add models/{name}.toml and rebuild, or pass a description file path ending in .toml)",
+            model_names().join(", ")
+        )
+    })
+}
+
+/// The description file a `--model` argument names, when it is a path
+/// (ends in `.toml`) rather than a compiled model's name.
+pub fn model_path(name: &str) -> Option<std::path::PathBuf> {
+    name.ends_with(".toml")
+        .then(|| std::path::PathBuf::from(name))
+}
