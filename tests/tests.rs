@@ -9,5 +9,6 @@ mod generated_code;
 mod hidden_effects;
 mod hostile;
 mod lumping;
+mod readers_fuzz;
 mod study;
 mod util;

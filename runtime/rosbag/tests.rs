@@ -452,6 +452,32 @@ fn non_finite_values_and_short_bags() {
 }
 
 proptest! {
+    #![proptest_config(ProptestConfig { cases: 1000, failure_persistence: None, ..ProptestConfig::default() })]
+    /// Whole bags with random bytes replaced or the file cut: an error that
+    /// names the file, or joint states, never a panic.
+    #[test]
+    fn mutated_bags_never_panic(
+        edits in proptest::collection::vec((any::<usize>(), any::<u8>(), any::<bool>()), 1..8),
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let msgs: Vec<JointStateMsg> = (0..6).map(|i| sample(i, &["a", "b"])).collect();
+        let path = bag_of(dir.path(), &msgs);
+        let mut bytes = std::fs::read(&path).unwrap();
+        for (at, byte, cut) in edits {
+            let at = at % bytes.len().max(1);
+            if cut {
+                bytes.truncate(at.max(1));
+            } else if at < bytes.len() {
+                bytes[at] = byte;
+            }
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        if let Err(e) = read(&path, None, None) {
+            let text = e.to_string();
+            prop_assert!(text.contains("bag") || text.contains(".mcap"), "{}", text);
+        }
+    }
+
     #[test]
     fn decoder_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..256), le in any::<bool>()) {
         // Also with a valid header, so the body parsing is exercised.
