@@ -586,7 +586,12 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         .last()
         .map(|b| b.link.clone())
         .unwrap_or_default();
-    let backup = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
+    let applied = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
+    let backup = applied.backup;
+    eprintln!("changed in {}:", toml.display());
+    for line in &applied.changes {
+        eprintln!("  {line}");
+    }
     let data: Vec<String> = args
         .data
         .iter()

@@ -10,7 +10,7 @@ use sdnn::sim::simulate::{SimConfig, simulate};
 use sdnn::study::{self, StudyConfig};
 use sdnn::trajectory::Trajectory;
 
-use crate::util::{Dir, assert_close, oracle, root, sdnn_json};
+use crate::util::{Dir, assert_close, oracle, root, sdnn, sdnn_json};
 
 const NOMINAL: &str = "kinova_gen3_lite_3dof";
 
@@ -479,6 +479,17 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
     args.extend(files.iter().map(String::as_str));
     let d = sdnn_json(&args);
     let effects = d["effects"].as_array().unwrap();
+
+    // A second --apply before a rebuild would add every effect twice: it is
+    // refused, the file stays, and the backup is still the original.
+    let once = std::fs::read_to_string(&copy).unwrap();
+    let again = sdnn(&args);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert_eq!(again.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("twice"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&copy).unwrap(), once);
+    let backup = std::fs::read_to_string(copy.with_extension("toml.bak")).unwrap();
+    assert_eq!(backup, source);
     let found: Vec<(&str, u64)> = effects
         .iter()
         .map(|e| (e["kind"].as_str().unwrap(), e["joint"].as_u64().unwrap()))

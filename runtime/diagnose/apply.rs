@@ -292,6 +292,13 @@ fn unique_link_name(doc: &DocumentMut, base: &str) -> String {
         .unwrap_or_else(|| base.to_string())
 }
 
+/// What `apply_to_file` did: the backup and the changed lines.
+pub struct Applied {
+    pub backup: PathBuf,
+    /// `- old` / `+ new` lines, in file order.
+    pub changes: Vec<String>,
+}
+
 /// Rewrites `path` with the effects: validates the result as a description,
 /// keeps a `.bak` copy, writes a temporary file and renames it into place.
 pub fn apply_to_file(
@@ -299,7 +306,7 @@ pub fn apply_to_file(
     diagnosis: &Diagnosis,
     joints: &[&str],
     last_link: &str,
-) -> Result<PathBuf> {
+) -> Result<Applied> {
     let source = std::fs::read_to_string(path)
         .with_context(|| format!("{}: cannot read", path.display()))?;
     let updated = apply_to_text(&source, diagnosis, joints, last_link)
@@ -315,7 +322,43 @@ pub fn apply_to_file(
     }
     crate::output::replace_input(path, updated.as_bytes())
         .with_context(|| format!("{}: cannot replace", path.display()))?;
-    Ok(backup)
+    Ok(Applied {
+        backup,
+        changes: changed_lines(&source, &updated),
+    })
+}
+
+/// The lines that differ between `old` and `new` as `- line` and `+ line`
+/// (a longest-common-subsequence diff; descriptions are short).
+fn changed_lines(old: &str, new: &str) -> Vec<String> {
+    let (a, b): (Vec<&str>, Vec<&str>) = (old.lines().collect(), new.lines().collect());
+    if a.len().saturating_mul(b.len()) > 4_000_000 {
+        return vec![format!("({} lines before, {} after)", a.len(), b.len())];
+    }
+    // common[i][j]: longest common subsequence of a[i..] and b[j..].
+    let mut common = vec![vec![0u32; b.len() + 1]; a.len() + 1];
+    for i in (0..a.len()).rev() {
+        for j in (0..b.len()).rev() {
+            common[i][j] = if a[i] == b[j] {
+                common[i + 1][j + 1] + 1
+            } else {
+                common[i + 1][j].max(common[i][j + 1])
+            };
+        }
+    }
+    let (mut i, mut j, mut out) = (0, 0, Vec::new());
+    while i < a.len() || j < b.len() {
+        if i < a.len() && j < b.len() && a[i] == b[j] {
+            (i, j) = (i + 1, j + 1);
+        } else if i < a.len() && (j == b.len() || common[i + 1][j] >= common[i][j + 1]) {
+            out.push(format!("- {}", a[i]));
+            i += 1;
+        } else {
+            out.push(format!("+ {}", b[j]));
+            j += 1;
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -363,6 +406,24 @@ mod tests {
     }
 
     const SOURCE: &str = "# my arm\n[[links]]\nname = \"base\"\n\n[[links]]\nname = \"a\" # upper arm\nmass = 1.0\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[joints]]\nname = \"j1\"\ntype = \"revolute\"\nparent = \"base\"\nchild = \"a\"\neffects = { viscous = 0.1 }\n";
+
+    #[test]
+    fn an_integer_value_is_added_to_not_dropped() {
+        let d = diagnosis(vec![effect(
+            Kind::ViscousFriction,
+            Some(1),
+            serde_json::json!({"coefficient": 0.25}),
+        )]);
+        let source = SOURCE.replace("viscous = 0.1", "viscous = 1");
+        let out = apply_to_text(&source, &d, &["j1"], "a").unwrap();
+        assert!(out.contains("viscous = 1.25"), "{out}");
+    }
+
+    #[test]
+    fn changed_lines_are_listed_in_file_order() {
+        let changes = changed_lines("a\nb\nc\n", "a\nB\nc\nd\n");
+        assert_eq!(changes, ["- b", "+ B", "+ d"]);
+    }
 
     #[test]
     fn joint_effects_add_to_existing_values_and_keep_comments() {
