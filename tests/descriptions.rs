@@ -377,3 +377,37 @@ fn locked_joint_is_a_fixed_joint_at_its_angle() {
         }
     }
 }
+
+#[test]
+fn values_beyond_any_arm_are_located_errors() {
+    for (from, to, key) in [
+        ("mass = 1.0", "mass = 1e200", "links[1].mass"),
+        (
+            "com = [0.1, 0.0, 0.0]",
+            "com = [1e5, 0.0, 0.0]",
+            "links[1].com",
+        ),
+        (
+            "ixx = 0.01, iyy = 0.02, izz = 0.02",
+            "ixx = 1e300, iyy = 1e300, izz = 1e300",
+            "links[1].inertia",
+        ),
+        (
+            "name = \"two links\"",
+            "name = \"two links\"\ngravity = [0.0, 0.0, -1e9]",
+            "gravity",
+        ),
+    ] {
+        let message = error_after(from, to);
+        assert_mentions(&message, &[key, "beyond any arm"]);
+    }
+}
+
+#[test]
+fn a_huge_axis_is_normalized_without_overflow() {
+    let description =
+        parse(&VALID.replacen("axis = [0.0, 0.0, 1.0]", "axis = [0.0, 0.0, 1e200]", 1))
+            .expect("a long axis is a direction");
+    let axis = description.chain().bodies[0].axis;
+    assert_eq!(axis, Vector3::new(0.0, 0.0, 1.0));
+}

@@ -123,6 +123,13 @@ impl Description {
                 "gravity must be finite numbers",
             ));
         }
+        let gravity = KeyPath::root().key("gravity");
+        plausible(
+            &self.gravity,
+            PLAUSIBLE_GRAVITY,
+            gravity,
+            "gravity component (m/s^2)",
+        )?;
         validate_name(&self.robot, KeyPath::root().key("name"))?;
         for (i, link) in self.links.iter().enumerate() {
             let at = KeyPath::root().key("links").index(i);
@@ -267,6 +274,13 @@ fn validate_link(link: &Link, at: KeyPath) -> Result<(), Located> {
             "com must be finite numbers (m)",
         ));
     }
+    plausible(&[mass], PLAUSIBLE_MASS, at.key("mass"), "mass (kg)")?;
+    plausible(
+        &link.com,
+        PLAUSIBLE_LENGTH,
+        at.key("com"),
+        "com component (m)",
+    )?;
     let Some(inertia) = link.inertia else {
         return Err(Located::new(
             at.key("inertia"),
@@ -286,6 +300,13 @@ fn validate_inertia(inertia: &Inertia, link: &Link, at: KeyPath) -> Result<(), L
             "inertia entries must be finite numbers (kg m^2)",
         ));
     }
+    let entries = inertia.values();
+    plausible(
+        &entries,
+        PLAUSIBLE_INERTIA,
+        at.clone(),
+        "inertia entry (kg m^2)",
+    )?;
     let eig = SymmetricEigen::new(inertia.matrix()).eigenvalues;
     let mut p = [eig[0], eig[1], eig[2]];
     p.sort_by(f64::total_cmp);
@@ -322,6 +343,27 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
     if !finite(&joint.axis) {
         return Err(Located::new(at.key("axis"), "axis must be finite numbers"));
     }
+    let origin = at.key("origin");
+    plausible(
+        &joint.origin.xyz,
+        PLAUSIBLE_LENGTH,
+        origin.key("xyz"),
+        "origin component (m)",
+    )?;
+    plausible(
+        &joint.origin.rpy,
+        PLAUSIBLE_ANGLE,
+        origin.key("rpy"),
+        "rpy angle (rad)",
+    )?;
+    if let Some(angle) = joint.locked {
+        plausible(
+            &[angle],
+            PLAUSIBLE_ANGLE,
+            at.key("locked"),
+            "locked angle (rad)",
+        )?;
+    }
     if joint.kind == JointKind::Revolute && norm(&joint.axis) < 1e-12 {
         return Err(Located::new(
             at.key("axis"),
@@ -347,6 +389,13 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
             "effects must be finite numbers",
         ));
     }
+    let effects = [e.armature, e.viscous, e.coulomb, e.offset];
+    plausible(
+        &effects,
+        PLAUSIBLE_EFFECT,
+        at.key("effects"),
+        "effect coefficient",
+    )?;
     for (key, value) in [
         ("armature", e.armature),
         ("viscous", e.viscous),
@@ -400,6 +449,33 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
     Ok(())
 }
 
+/// Euclidean length without overflow (components are scaled by the
+/// largest first: an axis of [1e200, 0, 0] has length 1e200, not inf).
 fn norm(v: &[f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+    let largest = v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    if largest == 0.0 || !largest.is_finite() {
+        return largest;
+    }
+    let s = v.map(|x| x / largest);
+    largest * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()
+}
+
+/// Largest magnitudes accepted, far outside any arm: a value past them is
+/// a typo or a unit slip, and squared in the dynamics it would overflow.
+pub const PLAUSIBLE_MASS: f64 = 1e5; // kg
+pub const PLAUSIBLE_LENGTH: f64 = 1e2; // m (origins, centres of mass)
+pub const PLAUSIBLE_INERTIA: f64 = 1e5; // kg m^2
+pub const PLAUSIBLE_ANGLE: f64 = 1e2; // rad (rpy, locked angles)
+pub const PLAUSIBLE_EFFECT: f64 = 1e6; // armature, friction, offset
+pub const PLAUSIBLE_GRAVITY: f64 = 1e3; // m/s^2
+
+/// A located error when a value exceeds `limit`.
+fn plausible(values: &[f64], limit: f64, at: KeyPath, what: &str) -> Result<(), Located> {
+    match values.iter().find(|v| v.abs() > limit) {
+        Some(v) => Err(Located::new(
+            at,
+            format!("{what} {v:e} is beyond any arm (at most {limit:e}); a typo or a unit slip?"),
+        )),
+        None => Ok(()),
+    }
 }
