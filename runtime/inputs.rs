@@ -73,6 +73,7 @@ impl InputArgs {
     pub fn read(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
         let traj = self.read_unchecked(path, dof)?;
         check_plausible(path, &traj)?;
+        warn_slow_sampling(path, traj.t());
         Ok(traj)
     }
 
@@ -274,6 +275,21 @@ pub fn load(
 /// (angles of 160 turns, 1000 rad/s, a million N m): a value past them is
 /// a logging fault, and squared in the dynamics it would overflow.
 pub const PLAUSIBLE: [(&str, f64); 3] = [("q", 1e3), ("qd", 1e3), ("tau", 1e6)];
+
+/// Joint logs tick at tens of Hz or faster; steps of 0.2 s and more most
+/// often mean a time column in milliseconds, read as seconds.
+fn warn_slow_sampling(path: &Path, t: &[f64]) {
+    let span = t.last().zip(t.first()).map_or(0.0, |(b, a)| b - a);
+    let step = span / (t.len().max(2) - 1) as f64;
+    if step >= 0.2 {
+        eprintln!(
+            "{}: samples are {step} s apart on average ({:.3} Hz); if the time column is in \
+             milliseconds, divide it by 1000 (the contract is seconds)",
+            path.display(),
+            1.0 / step
+        );
+    }
+}
 
 fn check_plausible(path: &Path, traj: &Trajectory) -> Result<()> {
     for ((name, limit), m) in PLAUSIBLE.iter().zip([traj.q(), traj.qd(), traj.tau()]) {

@@ -253,3 +253,22 @@ fn tau_reads_a_recording_from_standard_input_with_column_options() {
         "the same states give the same torques"
     );
 }
+
+#[test]
+fn time_in_milliseconds_is_warned_about() {
+    let dir = Dir::new();
+    let mut text = String::from("t,q1,q2,qd1,qd2,tau1,tau2\n");
+    for k in 0..600 {
+        text.push_str(&format!("{k},0.1,0.2,0.3,0.4,1,2\n"));
+    }
+    let file = dir.write("ms.csv", &text);
+    let run = sdnn(&[
+        "evaluate",
+        "--model",
+        "planar_2link",
+        "--data",
+        file.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("milliseconds"), "{stderr}");
+}

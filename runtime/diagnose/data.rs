@@ -9,6 +9,9 @@ use crate::oracle::coulomb_sign;
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
 use crate::trajectory::Trajectory;
 
+/// Shortest cross-validation segment, s.
+const MIN_SEGMENT_SECONDS: f64 = 1.0;
+
 /// Stacked data: rows are (sample, joint) pairs, sample-major.
 pub(super) struct Stacked {
     pub(super) residual: DVector<f64>,
@@ -220,9 +223,13 @@ pub(super) fn stack(
         ..Rows::default()
     };
     let mut group = Vec::new();
-    for (rows, &count) in kept.iter().zip(&counts) {
+    for ((rows, &count), &seconds) in kept.iter().zip(&counts).zip(&durations) {
         let samples = rows.residual.len() / n;
-        let count = count.clamp(1, samples.max(1));
+        // A segment of under a second validates nothing and multiplies the
+        // folds: a requested count is cut to whole seconds (the report
+        // states the segments used).
+        let whole_seconds = (seconds / MIN_SEGMENT_SECONDS).floor().max(1.0) as usize;
+        let count = count.clamp(1, samples.max(1).min(whole_seconds));
         let first = group.last().map_or(0, |g| g + 1);
         for s in 0..samples {
             group.extend(std::iter::repeat_n(first + s * count / samples, n));
