@@ -744,15 +744,24 @@ fn check_magnitudes(
 
 fn csv_error(path: &Path, e: csv::Error) -> TrajectoryError {
     let line = e.position().map_or(0, |p| p.line());
+    let message = e.to_string();
     match e.into_kind() {
         csv::ErrorKind::Io(source) => TrajectoryError::Io {
             path: path.to_owned(),
             source,
         },
-        kind => TrajectoryError::Csv {
+        csv::ErrorKind::Utf8 { err, .. } => TrajectoryError::Csv {
             path: path.to_owned(),
             line,
-            message: format!("{kind:?}"),
+            message: format!(
+                "field {} is not valid UTF-8 text (a binary file, or another encoding?)",
+                err.field() + 1
+            ),
+        },
+        _ => TrajectoryError::Csv {
+            path: path.to_owned(),
+            line,
+            message,
         },
     }
 }
@@ -1242,10 +1251,7 @@ mod tests {
         let tau = read_torques_csv(dir.join("tau.csv"), &ReadOptions::default()).unwrap();
         assert_eq!(tau, m(4.0));
         let err = read_states_csv(dir.join("tau.csv"), &ReadOptions::default()).unwrap_err();
-        assert!(
-            err.to_string().contains("unexpected column 'tau1'"),
-            "{err}"
-        );
+        assert!(err.to_string().contains("missing column 'q1'"), "{err}");
     }
 
     #[test]

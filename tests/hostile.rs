@@ -272,3 +272,28 @@ fn time_in_milliseconds_is_warned_about() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("milliseconds"), "{stderr}");
 }
+
+#[test]
+fn file_errors_say_the_os_error_once_and_binary_text_plainly() {
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        "/nonexistent/states.csv",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.matches("os error 2").count(), 1, "{stderr}");
+    let dir = Dir::new();
+    let binary = dir.path().join("binary.csv");
+    std::fs::write(&binary, b"q1,q2,qd1,qd2,qdd1,qdd2\n\xff,1,2,3,4,5\n").unwrap();
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        binary.to_str().unwrap(),
+    ]);
+    refused(&run, "line 2: malformed CSV: field 1 is not valid UTF-8");
+}
