@@ -3,6 +3,7 @@
 //! networks. Each case must end in a clear error (exit 2) or a correct
 //! result, never a panic, a hang or a destroyed input.
 
+use std::path::Path;
 use std::process::Output;
 
 use crate::util::{Dir, sdnn};
@@ -13,6 +14,21 @@ fn refused(run: &Output, needle: &str) {
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains(needle), "expected `{needle}` in: {stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// `sdnn tau --model planar_2link --input INPUT [--output OUTPUT]`.
+fn tau(input: &Path, output: Option<&Path>) -> Output {
+    let mut args = vec![
+        "tau",
+        "--model",
+        "planar_2link",
+        "--input",
+        input.to_str().unwrap(),
+    ];
+    if let Some(out) = output {
+        args.extend(["--output", out.to_str().unwrap()]);
+    }
+    sdnn(&args)
 }
 
 const STATES: &str = "q1,q2,qd1,qd2,qdd1,qdd2\n0.1,0.2,0.3,0.4,0.5,0.6\n";
@@ -82,29 +98,13 @@ fn a_read_only_output_is_refused_and_a_linked_one_written_through() {
     let states = dir.write("states.csv", STATES);
     let out = dir.write("tau.csv", "keep\n");
     std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o444)).unwrap();
-    let run = sdnn(&[
-        "tau",
-        "--model",
-        "planar_2link",
-        "--input",
-        states.to_str().unwrap(),
-        "--output",
-        out.to_str().unwrap(),
-    ]);
+    let run = tau(&states, Some(&out));
     refused(&run, "read-only");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "keep\n");
     let target = dir.write("target.csv", "old\n");
     let link = dir.path().join("link.csv");
     std::os::unix::fs::symlink(&target, &link).unwrap();
-    let run = sdnn(&[
-        "tau",
-        "--model",
-        "planar_2link",
-        "--input",
-        states.to_str().unwrap(),
-        "--output",
-        link.to_str().unwrap(),
-    ]);
+    let run = tau(&states, Some(&link));
     assert!(
         run.status.success(),
         "{}",
@@ -130,13 +130,7 @@ fn implausible_values_and_time_steps_are_located_errors() {
         "fast.csv",
         "q1,q2,qd1,qd2,qdd1,qdd2\n0.1,0.2,1e200,0.4,0.5,0.6\n",
     );
-    let run = sdnn(&[
-        "tau",
-        "--model",
-        "planar_2link",
-        "--input",
-        fast.to_str().unwrap(),
-    ]);
+    let run = tau(&fast, None);
     refused(&run, "line 2, column 'qd1'");
     let tiny = dir.write(
         "tiny.csv",
@@ -239,14 +233,7 @@ fn tau_reads_a_recording_from_standard_input_with_column_options() {
     let from_file = {
         let dir = Dir::new();
         let states = dir.write("s.csv", STATES);
-        sdnn(&[
-            "tau",
-            "--model",
-            "planar_2link",
-            "--input",
-            states.to_str().unwrap(),
-        ])
-        .stdout
+        tau(&states, None).stdout
     };
     assert_eq!(
         run.stdout, from_file,
@@ -288,12 +275,6 @@ fn file_errors_say_the_os_error_once_and_binary_text_plainly() {
     let dir = Dir::new();
     let binary = dir.path().join("binary.csv");
     std::fs::write(&binary, b"q1,q2,qd1,qd2,qdd1,qdd2\n\xff,1,2,3,4,5\n").unwrap();
-    let run = sdnn(&[
-        "tau",
-        "--model",
-        "planar_2link",
-        "--input",
-        binary.to_str().unwrap(),
-    ]);
+    let run = tau(&binary, None);
     refused(&run, "line 2: malformed CSV: field 1 is not valid UTF-8");
 }
