@@ -22,6 +22,7 @@ pub mod preprocess;
 pub mod ranges;
 pub mod report;
 pub mod rosbag;
+pub mod seeds;
 pub mod sim;
 pub mod study;
 pub mod study_report;

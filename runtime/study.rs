@@ -16,6 +16,7 @@ use serde::Serialize;
 use crate::dynamics::{Dynamics, model_torques, parsed_description};
 use crate::mlp::{Dataset, Mlp};
 use crate::preprocess::Preprocess;
+use crate::seeds::{self, Purpose};
 use crate::sim::models::Compiled;
 use crate::sim::reference::{
     ExcitationConfig, ExcitationTrajectory, JointLimits, Reference, WaypointConfig,
@@ -353,7 +354,11 @@ fn record(
         references.push(reference);
     }
     let mut order: Vec<usize> = (0..config.trajectories).collect();
-    order.shuffle(&mut ChaCha8Rng::seed_from_u64(config.seed));
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(seeds::derive(
+        config.seed,
+        Purpose::Split,
+        0,
+    )));
     let (train, test) = order.split_at(config.train);
     let (mut train, mut test) = (train.to_vec(), test.to_vec());
     train.sort_unstable();
@@ -369,7 +374,7 @@ fn record(
 
 /// The seed of trajectory `k` of a recording session.
 pub fn trajectory_seed(seed: u64, k: usize) -> u64 {
-    seed.wrapping_mul(1000).wrapping_add(k as u64)
+    seeds::derive(seed, Purpose::Trajectory, k as u64)
 }
 
 /// Records one random-waypoint trajectory on the virtual robot.
@@ -555,8 +560,10 @@ fn theoretical_data(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<Data
     let samples = (config.duration / dt).round() as usize + 1;
     let mut parts = Vec::new();
     for k in 0..config.theoretical_trajectories {
-        let reference =
-            ExcitationTrajectory::new(&excitation, config.seed.wrapping_add(500 + k as u64))?;
+        let reference = ExcitationTrajectory::new(
+            &excitation,
+            seeds::derive(config.seed, Purpose::Theoretical, k as u64),
+        )?;
         let n = reference.dof();
         let (mut q, mut qd, mut qdd) = (
             DMatrix::zeros(samples, n),
@@ -632,14 +639,18 @@ fn train_all(
     let done = Mutex::new(0usize);
     let results = parallel_map(total, |i| -> Result<(Vec<f64>, Mlp)> {
         let (job, seed) = (&jobs[i / config.seeds], (i % config.seeds) as u64);
-        let training = dataset_for(&job.recipe, &sets, config.seed + seed)?;
+        let training = dataset_for(
+            &job.recipe,
+            &sets,
+            seeds::derive(config.seed, Purpose::Mix, seed),
+        )?;
         let network = Mlp::params()
             .hidden(config.hidden.clone())
             .max_epochs(config.max_epochs)
             .patience(config.patience)
             .batch_size(config.batch_size)
             .learning_rate(config.learning_rate)
-            .seed(config.seed.wrapping_mul(100).wrapping_add(seed))
+            .seed(seeds::derive(config.seed, Purpose::Network, seed))
             .fit(&training)
             .with_context(|| format!("training {} (seed {seed})", job.name))?;
         let pairs = test
