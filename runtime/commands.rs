@@ -635,7 +635,7 @@ fn for_each_file(files: &[PathBuf], f: impl Fn(&Path) -> Result<()>) -> Result<(
     let mut failed = 0;
     for path in files {
         if let Err(e) = f(path) {
-            eprintln!("sdnn: {e:#}");
+            eprintln!("sdnn: {}", crate::errors::message(&e));
             failed += 1;
         }
     }

@@ -11,6 +11,7 @@ pub mod commands;
 pub mod described;
 pub mod diagnose;
 pub mod dynamics;
+pub mod errors;
 pub mod import_log;
 pub mod import_urdf;
 pub mod imports;

@@ -11,27 +11,10 @@ fn main() -> ExitCode {
             if is_broken_pipe(&error) {
                 return ExitCode::SUCCESS;
             }
-            eprintln!("sdnn: {}", message(&error));
+            eprintln!("sdnn: {}", sdnn::errors::message(&error));
             ExitCode::from(2)
         }
     }
-}
-
-/// The error and its causes, each cause once: a cause whose text the
-/// message already carries (a file error that prints its OS error) is not
-/// repeated.
-fn message(error: &anyhow::Error) -> String {
-    let mut text = String::new();
-    for cause in error.chain() {
-        let part = cause.to_string();
-        if !text.contains(&part) {
-            if !text.is_empty() {
-                text.push_str(": ");
-            }
-            text.push_str(&part);
-        }
-    }
-    text
 }
 
 fn is_broken_pipe(error: &anyhow::Error) -> bool {

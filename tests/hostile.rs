@@ -88,6 +88,32 @@ fn an_output_never_replaces_the_commands_input() {
     ]);
     refused(&run, "refusing to write its output over it");
     assert_eq!(std::fs::read_to_string(&states).unwrap(), STATES);
+    // preprocess and synth write DIR/<input name>: into the input's folder
+    // that is the input itself.
+    let mut rows = String::from("t,q1,q2,qd1,qd2,tau1,tau2\n");
+    for k in 0..600 {
+        let t = f64::from(k) * 0.01;
+        rows.push_str(&format!("{t},{},{},0,0,1,2\n", t.sin(), t.cos()));
+    }
+    let recording = dir.write("rec.csv", &rows);
+    let folder = dir.path().to_str().unwrap();
+    for args in [
+        vec!["preprocess", recording.to_str().unwrap(), "--out", folder],
+        vec![
+            "synth",
+            "--model",
+            "planar_2link",
+            recording.to_str().unwrap(),
+            "--out",
+            folder,
+        ],
+    ] {
+        let run = sdnn(&args);
+        refused(&run, "refusing to write its output over it");
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(stderr.matches("refusing").count(), 1, "said once: {stderr}");
+        assert_eq!(std::fs::read_to_string(&recording).unwrap(), rows);
+    }
 }
 
 #[cfg(unix)]
