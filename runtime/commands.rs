@@ -198,7 +198,7 @@ pub struct SimulateArgs {
 
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
-    std::fs::create_dir_all(&args.out)
+    crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let config = StudyConfig {
         duration: args.duration,
@@ -243,7 +243,7 @@ pub struct PreprocessArgs {
 }
 
 pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
-    std::fs::create_dir_all(&args.out)
+    crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
         let (processed, pipeline) = load_one(path, None, &args.input, &args.filter)?;
@@ -274,7 +274,7 @@ pub struct SynthArgs {
 
 pub fn synth(args: &SynthArgs) -> Result<()> {
     let model = find_model(&args.model)?;
-    std::fs::create_dir_all(&args.out)
+    crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
         let traj = if args.preprocessed {
@@ -360,15 +360,21 @@ pub fn train(args: &TrainArgs) -> Result<()> {
         "train_loss": history.train_loss().last(),
         "valid_loss": history.valid_loss().last(),
     });
-    match args.format {
-        Format::Json => println!("{summary}"),
-        Format::Text => println!(
+    let text = match args.format {
+        Format::Json => summary.to_string(),
+        Format::Text => format!(
             "trained on {} samples for {} epochs (best {}); written to {}",
             data.len(),
             history.epochs(),
             history.best_epoch(),
             args.out.display()
         ),
+    };
+    // With the network on standard output, the summary goes to stderr.
+    if crate::output::is_stdout(&args.out) {
+        eprintln!("{text}");
+    } else {
+        println!("{text}");
     }
     Ok(())
 }

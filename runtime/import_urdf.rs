@@ -193,7 +193,13 @@ fn parse_inertia(value: &str) -> Result<[f64; 6], String> {
             ));
         }
     };
-    let eigen = inertia_matrix(&six).symmetric_eigenvalues();
+    let matrix = inertia_matrix(&six);
+    let eigen = crate::kernels::symmetric_eigenvalues(nalgebra::DMatrix::from_column_slice(
+        3,
+        3,
+        matrix.as_slice(),
+    ))
+    .ok_or_else(|| format!("inertia '{value}' has no principal moments (entries too large?)"))?;
     if eigen.min() <= 0.0 {
         return Err(format!(
             "inertia '{value}' is not positive definite (smallest principal moment {:e})",

@@ -16,6 +16,7 @@ pub mod import_log;
 pub mod import_urdf;
 pub mod imports;
 pub mod inputs;
+pub mod kernels;
 pub mod mlp;
 pub mod oracle;
 pub mod output;

@@ -10,7 +10,8 @@
 //! over one of them is refused: a command's outputs never destroy the data
 //! they came from. `replace_input` is the one deliberate exception
 //! (`diagnose --apply` edits the TOML it read). A library user, who may
-//! well rewrite a file it read, is not restricted.
+//! well rewrite a file it read, is not restricted. The path `-` is standard
+//! output (a file named `-` is `./-`).
 
 use std::fs;
 use std::io::{self, BufWriter, Write};
@@ -41,6 +42,23 @@ pub fn note_input(path: &Path) {
     }
 }
 
+/// Whether `path` means standard output.
+pub fn is_stdout(path: &Path) -> bool {
+    path == Path::new("-")
+}
+
+/// Creates the output folder `path` (and its parents). `-` is refused: a
+/// folder of files cannot go to standard output.
+pub fn create_folder(path: &Path) -> io::Result<()> {
+    if is_stdout(path) {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "`-` (standard output) cannot hold a folder of files; give a folder path",
+        ));
+    }
+    fs::create_dir_all(path)
+}
+
 /// Writes `bytes` to `path` (see the module documentation).
 pub fn write(path: &Path, bytes: &[u8]) -> io::Result<()> {
     write_with(path, |w| w.write_all(bytes))
@@ -49,8 +67,13 @@ pub fn write(path: &Path, bytes: &[u8]) -> io::Result<()> {
 /// Writes what `body` produces to `path` (see the module documentation).
 pub fn write_with(
     path: &Path,
-    body: impl FnOnce(&mut BufWriter<&mut fs::File>) -> io::Result<()>,
+    body: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> io::Result<()> {
+    if is_stdout(path) {
+        let mut w = BufWriter::new(io::stdout().lock());
+        body(&mut w)?;
+        return w.flush();
+    }
     let target = destination(path)?;
     if is_input(&target) {
         return Err(io::Error::new(
@@ -95,10 +118,7 @@ fn is_input(target: &Path) -> bool {
     inputs.contains(&canonical)
 }
 
-fn replace(
-    target: &Path,
-    body: impl FnOnce(&mut BufWriter<&mut fs::File>) -> io::Result<()>,
-) -> io::Result<()> {
+fn replace(target: &Path, body: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> io::Result<()> {
     let existing = fs::metadata(target).ok();
     if existing
         .as_ref()

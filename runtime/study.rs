@@ -140,7 +140,8 @@ pub fn run(
     progress: Progress<'_>,
 ) -> Result<StudyResult> {
     check(config, plant, nominal)?;
-    std::fs::create_dir_all(out.join("data"))
+    crate::output::create_folder(out)
+        .and_then(|()| std::fs::create_dir_all(out.join("data")))
         .with_context(|| format!("creating {}", out.display()))?;
     let data = record(plant, nominal, config, out, progress)?;
     let filter_comparison = compare_filters(nominal, &data, config)?;
@@ -224,7 +225,7 @@ pub fn run_on_measurements(
             .push(processed.rows(cut, processed.len() - cut));
         data.raw.push(raw.rows(raw_cut, raw.len() - raw_cut));
     }
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    crate::output::create_folder(out).with_context(|| format!("creating {}", out.display()))?;
     analyse(None, nominal, data, Vec::new(), config, out, progress)
 }
 

@@ -11,7 +11,7 @@
 
 use std::collections::{HashMap, HashSet};
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 use nalgebra::DMatrix;
@@ -1055,7 +1055,7 @@ pub fn write_torques(w: &mut impl Write, tau: &DMatrix<f64>) -> io::Result<()> {
 }
 
 fn write_table(
-    w: &mut impl Write,
+    w: &mut (impl Write + ?Sized),
     header: &[String],
     blocks: &[(Option<Channel>, &DMatrix<f64>)],
 ) -> io::Result<()> {
@@ -1079,7 +1079,7 @@ fn write_table(
 
 fn atomic_write(
     path: &Path,
-    body: impl FnOnce(&mut BufWriter<&mut File>) -> io::Result<()>,
+    body: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> Result<(), TrajectoryError> {
     crate::output::write_with(path, body).map_err(|source| TrajectoryError::Io {
         path: path.to_owned(),

@@ -304,3 +304,60 @@ fn file_errors_say_the_os_error_once_and_binary_text_plainly() {
     let run = tau(&binary, None);
     refused(&run, "line 2: malformed CSV: field 1 is not valid UTF-8");
 }
+
+#[test]
+fn dash_is_standard_output_for_files_and_refused_for_folders() {
+    let dir = Dir::new();
+    let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
+    for k in 0..400 {
+        let t = f64::from(k) * 0.01;
+        rows.push_str(&format!(
+            "{t},{},{},0,0,0,0,{},0\n",
+            t.sin(),
+            t.cos(),
+            t.sin()
+        ));
+    }
+    let data = dir.write("d.csv", &rows);
+    let more = dir.write("e.csv", &rows);
+    let data_args = [data.to_str().unwrap(), more.to_str().unwrap()];
+    let mut args = vec!["train", "--out", "-", "--epochs", "2", "--hidden", "4"];
+    args.extend(["--preprocessed", "--format", "json"]);
+    args.extend(data_args);
+    let run = sdnn(&args);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // The network alone on stdout, the summary on stderr.
+    let network: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!(network.is_object());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("\"epochs\""));
+    let net = dir.write("net.json", &String::from_utf8_lossy(&run.stdout));
+    let states = dir.write("states.csv", STATES);
+    let run = sdnn(&[
+        "predict",
+        "--nn",
+        net.to_str().unwrap(),
+        "--input",
+        states.to_str().unwrap(),
+        "--output",
+        "-",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(text.starts_with("tau1,tau2\n"), "{text}");
+    assert_eq!(text.lines().count(), 2, "{text}");
+    assert!(!dir.path().join("-").exists());
+    for command in [
+        vec!["simulate", "--out", "-", "--count", "1"],
+        vec!["preprocess", "--out", "-", data_args[0]],
+    ] {
+        refused(&sdnn(&command), "cannot hold a folder");
+    }
+}

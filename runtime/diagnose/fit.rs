@@ -123,7 +123,11 @@ pub(super) fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
             return DVector::from_fn(k, |i, _| x[i] / d[i]);
         }
     }
-    let svd = scaled.svd(true, true);
+    // Non-finite or non-converging: no solution (the callers check their
+    // data for finiteness first, so this is a guard, not a path).
+    let Some(svd) = crate::kernels::svd(scaled) else {
+        return DVector::zeros(k);
+    };
     let tolerance = 1e-12 * svd.singular_values.max().max(f64::MIN_POSITIVE);
     let x = svd
         .solve(&rhs, tolerance)
@@ -408,7 +412,10 @@ pub(super) fn identifiability(information: &DMatrix<f64>, range: std::ops::Range
         }
     }
     let scaled = DMatrix::from_fn(w, w, |i, j| schur[(i, j)] / (d[i] * d[j]).sqrt());
-    for v in scaled.symmetric_eigenvalues().iter() {
+    let Some(eigenvalues) = crate::kernels::symmetric_eigenvalues(scaled) else {
+        return 0.0;
+    };
+    for v in eigenvalues.iter() {
         least = least.min(*v);
     }
     least

@@ -58,7 +58,9 @@ pub(super) fn identifiability(
         .map(|i| info[(i, i)].max(f64::MIN_POSITIVE).sqrt())
         .collect();
     let scaled = DMatrix::from_fn(k, k, |i, j| info[(i, j)] / (d[i] * d[j]));
-    let eigen = scaled.symmetric_eigenvalues();
+    let Some(eigen) = crate::kernels::symmetric_eigenvalues(scaled.clone()) else {
+        return Identifiability::default();
+    };
     let (low, high) = (eigen.min().max(0.0), eigen.max());
     let covariance = DMatrix::from_columns(
         &(0..k)

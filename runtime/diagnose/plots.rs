@@ -14,7 +14,7 @@ use crate::report::plot::{LinePlot, Series, Style, grid_plot};
 /// Writes `residual_vs_velocity.svg` and `residual_vs_acceleration.svg` into
 /// `dir` (created if needed) and returns their paths.
 pub fn write(dir: &Path, diagnosis: &Diagnosis) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::output::create_folder(dir).with_context(|| format!("creating {}", dir.display()))?;
     let samples = &diagnosis.residuals;
     let mut written = Vec::new();
     for (file, what, unit, x) in [

@@ -54,7 +54,10 @@ pub(super) fn mass_identifiable(
         a[(0, k)] /= lever;
         a[(k, 0)] /= lever;
     }
-    let largest = a.symmetric_eigenvalues().max();
+    let Some(eigenvalues) = crate::kernels::symmetric_eigenvalues(a.clone()) else {
+        return false;
+    };
+    let largest = eigenvalues.max();
     if largest <= 0.0 {
         return false;
     }

@@ -237,8 +237,10 @@ fn sg_fit_matrix(window: usize, order: usize, scale: f64) -> Result<DMatrix<f64>
     let vander = DMatrix::from_fn(window, order + 1, |k, p| {
         ((k as f64 - half) / scale).powi(p as i32)
     });
-    vander
-        .svd(true, true)
+    crate::kernels::svd(vander)
+        .ok_or(PreprocessError::Numerical(
+            "the Savitzky-Golay fit matrix has no SVD (non-finite or not converging)",
+        ))?
         .pseudo_inverse(1e-12)
         .map_err(PreprocessError::Numerical)
 }
