@@ -8,10 +8,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::DMatrix;
 
 use crate::args::{AngleArg, Format, find_model};
+use crate::corrections::Corrections;
 use crate::diagnose::Diagnosis;
 use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
-use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed};
+use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed, shell_word};
 use crate::mlp::{Dataset, Mlp};
 use crate::preprocess::Compared;
 use crate::ranges;
@@ -594,7 +595,14 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         .unwrap_or_default();
     let applied = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
     let backup = applied.backup;
-    eprintln!("changed in {}:", toml.display());
+    if applied.changes.is_empty() {
+        eprintln!(
+            "{}: unchanged (no effect of the robot was named)",
+            toml.display()
+        );
+    } else {
+        eprintln!("changed in {}:", toml.display());
+    }
     for line in &applied.changes {
         eprintln!("  {line}");
     }
@@ -603,32 +611,37 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         .iter()
         .map(|p| shell_word(&p.display().to_string()))
         .collect();
-    let options = args.filter.command_line(args.input.angles);
+    let corrections = args
+        .input
+        .corrections()
+        .then(&Corrections::diagnosed(report));
+    let options =
+        args.input.command_line(&corrections) + &args.filter.command_line(args.input.angles);
+    if corrections != args.input.corrections() {
+        eprintln!(
+            "the recordings need correcting too (properties of the data, not of the robot, so not \
+             in the TOML):{}",
+            Corrections::diagnosed(report).flags()
+        );
+    }
+    let done = if applied.changes.is_empty() {
+        "the gap with the corrections".to_string()
+    } else {
+        format!(
+            "updated {} (backup {}); the gap with the effects, no rebuild needed",
+            toml.display(),
+            backup.display()
+        )
+    };
     eprintln!(
-        "updated {} (backup {}); the gap with the effects, no rebuild needed:\n  \
-         sdnn evaluate --model {} --data {}{options}\n(`cargo build --release` makes it the \
-         compiled model `{}` when the file is under models/)",
-        toml.display(),
-        backup.display(),
+        "{done}:\n  sdnn evaluate --model {} --data {}{options}\n(`cargo build --release` makes \
+         it the compiled model `{}` when the file is under models/)",
         shell_word(&toml.display().to_string()),
         data.join(" "),
         toml.file_stem()
             .map_or(String::new(), |s| s.to_string_lossy().into_owned()),
     );
     Ok(())
-}
-
-/// `word` quoted for a POSIX shell when it needs it.
-fn shell_word(word: &str) -> String {
-    if !word.is_empty()
-        && word
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@".contains(c))
-    {
-        word.to_string()
-    } else {
-        format!("'{}'", word.replace('\'', "'\\''"))
-    }
 }
 
 fn file_name(path: &Path) -> Result<&std::ffi::OsStr> {

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use nalgebra::DMatrix;
 
@@ -37,6 +37,30 @@ pub struct InputArgs {
     /// separated [default: the first message's joints, in its order].
     #[arg(long, value_delimiter = ',')]
     pub joints: Option<Vec<String>>,
+    /// Divide joint J's logged torque by S (a torque sensor's scale error,
+    /// as `sdnn diagnose` reports it), e.g. `--torque-scale 2=1.05`.
+    #[arg(long = "torque-scale", value_name = "J=S", value_parser = crate::corrections::parse_scale)]
+    pub torque_scales: Vec<(usize, f64)>,
+    /// The torque is logged this many seconds after its state (as `sdnn
+    /// diagnose` reports it): each torque is moved back to its state
+    /// (linear interpolation); the samples left without one are dropped.
+    #[arg(long = "torque-delay", value_name = "SECONDS", allow_hyphen_values = true,
+          value_parser = ranges::real(-crate::corrections::MAX_DELAY, crate::corrections::MAX_DELAY, false,
+          "a torque a second late is another recording"))]
+    pub torque_delay: Option<f64>,
+}
+
+/// `word` quoted for a POSIX shell when it needs it.
+pub fn shell_word(word: &str) -> String {
+    if !word.is_empty()
+        && word
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@".contains(c))
+    {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 pub fn parse_mapping(text: &str) -> Result<(String, String), String> {
@@ -51,6 +75,39 @@ pub fn parse_mapping(text: &str) -> Result<(String, String), String> {
 }
 
 impl InputArgs {
+    /// The torque corrections given on the command line.
+    pub fn corrections(&self) -> crate::corrections::Corrections {
+        crate::corrections::Corrections {
+            scales: self.torque_scales.clone(),
+            delay: self.torque_delay.unwrap_or(0.0),
+        }
+    }
+
+    /// The options that read the files again as these did (angles are
+    /// printed with the preprocessing), with `corrections` for the torque.
+    pub fn command_line(&self, corrections: &crate::corrections::Corrections) -> String {
+        let mut flags = String::new();
+        if let Some(hz) = self.resample {
+            flags.push_str(&format!(" --resample {hz}"));
+        }
+        for (from, to) in &self.columns {
+            flags.push_str(&format!(
+                " --column {}",
+                shell_word(&format!("{from}={to}"))
+            ));
+        }
+        for name in &self.ignored {
+            flags.push_str(&format!(" --ignore-column {}", shell_word(name)));
+        }
+        if let Some(topic) = &self.topic {
+            flags.push_str(&format!(" --topic {}", shell_word(topic)));
+        }
+        if let Some(joints) = &self.joints {
+            flags.push_str(&format!(" --joints {}", shell_word(&joints.join(","))));
+        }
+        flags + &corrections.flags()
+    }
+
     pub fn options(&self, dof: Option<usize>, min_samples: usize) -> ReadOptions {
         ReadOptions {
             units: self.angles.into(),
@@ -74,7 +131,12 @@ impl InputArgs {
         let traj = self.read_unchecked(path, dof)?;
         check_plausible(path, &traj)?;
         warn_slow_sampling(path, traj.t());
-        Ok(traj)
+        if self.torque_scales.is_empty() && self.torque_delay.is_none() {
+            return Ok(traj);
+        }
+        let delay = self.torque_delay.unwrap_or(0.0);
+        crate::corrections::correct(&traj, &self.torque_scales, delay)
+            .with_context(|| path.display().to_string())
     }
 
     /// Reads at the given `--resample` rate; without one, a jittery file

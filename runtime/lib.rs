@@ -8,6 +8,7 @@
 pub mod args;
 pub mod cli;
 pub mod commands;
+pub mod corrections;
 pub mod described;
 pub mod diagnose;
 pub mod dynamics;

@@ -5,10 +5,8 @@
 //! parameter errors are printed (`cargo test --release hidden_effects --
 //! --nocapture`; docs/diagnosis.md's table comes from it) and asserted:
 //! every hidden effect named with its kind and place, nothing else named,
-//! every parameter within 15%, except the known weakness: a link-2 mass
-//! error (its mass acts only through second moments) combined with another
-//! effect, or from one recording at 100 Hz, can be missed, mis-sized or
-//! taken for a payload (listed, not asserted; docs/diagnosis.md).
+//! every parameter within 15%, except the known weaknesses listed by
+//! [`known_weakness`] (printed, not asserted; docs/diagnosis.md).
 
 use std::collections::BTreeMap;
 
@@ -35,7 +33,10 @@ struct Hidden {
 
 const LINK2_MASS: f64 = 1.1776 * 1.3;
 
-const EFFECTS: [Hidden; 6] = [
+/// Base tilt of the tilted-base case, degrees.
+const TILT_DEG: f64 = 3.0;
+
+const EFFECTS: [Hidden; 9] = [
     Hidden {
         kind: Kind::ViscousFriction,
         joint: Some(2),
@@ -78,6 +79,27 @@ const EFFECTS: [Hidden; 6] = [
         parameter: "mass",
         value: LINK2_MASS,
     },
+    Hidden {
+        kind: Kind::TorqueScale,
+        joint: Some(2),
+        link: None,
+        parameter: "scale",
+        value: 1.1,
+    },
+    Hidden {
+        kind: Kind::TorqueDelay,
+        joint: None,
+        link: None,
+        parameter: "delay",
+        value: 0.012,
+    },
+    Hidden {
+        kind: Kind::GravityDirection,
+        joint: None,
+        link: None,
+        parameter: "tilt_deg",
+        value: TILT_DEG,
+    },
 ];
 
 fn hide(truth: &mut Model, h: &Hidden) {
@@ -94,7 +116,41 @@ fn hide(truth: &mut Model, h: &Hidden) {
             let com = [p[1] / p[0], p[2] / p[0], p[3] / p[0]];
             add_point_mass(&mut truth.bodies[1].parameters, h.value - p[0], com);
         }
+        Kind::GravityDirection => {
+            let g = truth.gravity.norm();
+            let tilt = h.value.to_radians();
+            truth.gravity = nalgebra::Vector3::new(0.0, g * tilt.sin(), -g * tilt.cos());
+        }
+        // Properties of the recording (see `distort`).
+        Kind::TorqueScale | Kind::TorqueDelay => {}
     }
+}
+
+/// The recording-side effects: a joint's torque logged scaled, or every
+/// torque logged `delay` s late (linear interpolation).
+fn distort(recording: &Trajectory, h: &Hidden) -> Trajectory {
+    let mut tau = recording.tau().clone();
+    match h.kind {
+        Kind::TorqueScale => {
+            let j = h.joint.unwrap() - 1;
+            tau.column_mut(j).scale_mut(h.value);
+        }
+        Kind::TorqueDelay => {
+            let t = recording.t();
+            let dt = t[1] - t[0];
+            for s in 0..tau.nrows() {
+                let at = (s as f64 - h.value / dt).max(0.0);
+                let (k, f) = (at.floor() as usize, at.fract());
+                let next = (k + 1).min(tau.nrows() - 1);
+                for j in 0..tau.ncols() {
+                    let original = recording.tau();
+                    tau[(s, j)] = (1.0 - f) * original[(k, j)] + f * original[(next, j)];
+                }
+            }
+        }
+        _ => return recording.clone(),
+    }
+    recording.with_tau(tau).unwrap()
 }
 
 fn name(h: &Hidden) -> String {
@@ -111,6 +167,24 @@ fn named(e: &Effect) -> String {
         (None, Some(link)) => format!("{} {link}", e.kind.name()),
         _ => e.kind.name(),
     }
+}
+
+/// The documented weak spots (docs/diagnosis.md), listed, not asserted:
+/// - a link-2 mass error (its mass acts only through second moments) with
+///   another effect, or from one recording;
+/// - a tilted base with a payload: the payload's columns use the model's
+///   gravity, so the tilt absorbs the payload's share of the tilted load
+///   (the tilt comes out about 23% large);
+/// - a tilted base with a torque-scale error from one recording (an
+///   inertial error of link 2 and an offset on joint 1 are named too);
+/// - a torque-scale error with a delay: the delay comes out up to 16% small.
+fn known_weakness(hidden: &[Hidden], variant: &str) -> bool {
+    let has = |kind| hidden.iter().any(|h| h.kind == kind);
+    let one_recording = variant.starts_with('1');
+    (has(Kind::InertialError) && (hidden.len() > 1 || one_recording))
+        || (has(Kind::GravityDirection) && has(Kind::Payload))
+        || (has(Kind::GravityDirection) && has(Kind::TorqueScale) && one_recording)
+        || (has(Kind::TorqueScale) && has(Kind::TorqueDelay))
 }
 
 fn run(recordings: &[Trajectory]) -> Diagnosis {
@@ -138,7 +212,10 @@ fn every_hidden_effect_alone_and_in_pairs() {
         for h in hidden {
             hide(&mut truth, h);
         }
-        let khz = raw_recordings(&truth, 3);
+        let mut khz = raw_recordings(&truth, 3);
+        for h in hidden {
+            khz = khz.iter().map(|r| distort(r, h)).collect();
+        }
         let hz100: Vec<Trajectory> = khz.iter().map(|t| downsample(t, 10).unwrap()).collect();
         let variants = [
             ("3 x 1 kHz", khz.clone()),
@@ -147,8 +224,7 @@ fn every_hidden_effect_alone_and_in_pairs() {
             ("1 x 100 Hz", hz100[..1].to_vec()),
         ];
         for (variant, recordings) in variants {
-            let weak = hidden.iter().any(|h| h.kind == Kind::InertialError)
-                && (hidden.len() > 1 || variant.starts_with('1'));
+            let weak = known_weakness(hidden, variant);
             let failures = if weak { &mut known } else { &mut failures };
             let d = run(&recordings);
             let found: Vec<String> = d.effects.iter().map(named).collect();

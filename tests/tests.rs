@@ -1,6 +1,7 @@
 //! Integration tests of the product, one binary (see `util` for helpers).
 
 mod cli;
+mod data_effects;
 mod descriptions;
 mod diagnose;
 mod dynamics;

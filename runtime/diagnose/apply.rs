@@ -97,13 +97,27 @@ pub fn apply_to_text(
                 };
                 correct_link(&mut doc, link, mass, &com, nominal_mass, &nominal_com)?;
             }
+            // Properties of the recording, not of the robot: corrected
+            // with evaluate's and diagnose's options, not in the TOML.
+            (Kind::TorqueScale | Kind::TorqueDelay, _) => {}
+            (Kind::GravityDirection, _) => {
+                let gravity: Vec<f64> = vector(&effect.parameters, "gravity")?
+                    .into_iter()
+                    .map(|g| g.context("gravity must be numbers"))
+                    .collect::<Result<_>>()?;
+                let mut array = Array::new();
+                for g in gravity {
+                    array.push(g);
+                }
+                set_keeping_decor(doc.as_table_mut(), "gravity", Value::Array(array));
+            }
             (kind, Some(joint)) => {
                 let (key, parameter) = match kind {
                     Kind::ViscousFriction => ("viscous", "coefficient"),
                     Kind::CoulombFriction => ("coulomb", "level"),
                     Kind::Armature => ("armature", "inertia"),
                     Kind::TorqueOffset => ("offset", "offset"),
-                    Kind::Payload | Kind::InertialError => unreachable!("handled above"),
+                    _ => unreachable!("handled above"),
                 };
                 let name = joints.get(joint - 1).context("joint index out of range")?;
                 add_joint_effect(
@@ -314,6 +328,13 @@ pub fn apply_to_file(
     let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("model");
     codegen::Description::parse(&updated, stem, path)
         .context("the updated description does not validate")?;
+    if updated == source {
+        // Only properties of the data were named: nothing to write.
+        return Ok(Applied {
+            backup: path.with_extension("toml.bak"),
+            changes: Vec::new(),
+        });
+    }
     // The first backup is the original: a later --apply never replaces it.
     let backup = path.with_extension("toml.bak");
     if !backup.exists() {
@@ -417,6 +438,29 @@ mod tests {
         let source = SOURCE.replace("viscous = 0.1", "viscous = 1");
         let out = apply_to_text(&source, &d, &["j1"], "a").unwrap();
         assert!(out.contains("viscous = 1.25"), "{out}");
+    }
+
+    #[test]
+    fn a_tilt_sets_gravity_and_data_properties_leave_the_file() {
+        let tilted = diagnosis(vec![effect(
+            Kind::GravityDirection,
+            None,
+            serde_json::json!({"gravity": [0.0, 0.5, -9.797], "tilt_deg": 2.9}),
+        )]);
+        let out = apply_to_text(SOURCE, &tilted, &["j1"], "a").unwrap();
+        assert!(out.contains("gravity = [0.0, 0.5, -9.797]"), "{out}");
+        assert!(out.contains("# upper arm"), "{out}");
+        let again = apply_to_text(&out, &tilted, &["j1"], "a").unwrap();
+        assert_eq!(again.matches("gravity").count(), 1, "{again}");
+        let data = diagnosis(vec![
+            effect(
+                Kind::TorqueScale,
+                Some(1),
+                serde_json::json!({"scale": 1.1}),
+            ),
+            effect(Kind::TorqueDelay, None, serde_json::json!({"delay": 0.01})),
+        ]);
+        assert_eq!(apply_to_text(SOURCE, &data, &["j1"], "a").unwrap(), SOURCE);
     }
 
     #[test]

@@ -4,6 +4,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::Kind;
+use super::data::{Link, Stacked};
 
 /// One candidate: a kind, a joint or link, its columns and how its named
 /// parameters map to coefficients of those columns.
@@ -27,6 +28,19 @@ pub(super) struct Candidate {
 pub(super) enum Shape {
     /// The parameters are the coefficients.
     Linear,
+    /// A tilted base: theta = (a, b), the gravity components (m/s^2) along
+    /// `across` of the tilted gravity, whose magnitude stays the model's:
+    /// coefficients (a, b, sqrt(|g|^2 - a^2 - b^2) - |g|) of the gravity
+    /// torques for unit gravity along `across[0]`, `across[1]` and the
+    /// model's gravity direction.
+    Tilt {
+        gravity: Vector3<f64>,
+        across: [Vector3<f64>; 2],
+    },
+    /// Linear, a delay (s): one parameter, named only beyond
+    /// `sample_period` (a torque held over the sample interval reads half
+    /// a sample early: the logging convention, not a delay).
+    Delay { sample_period: f64 },
     /// theta = (m, cx, cy, cz) over a link's ten inertial columns:
     /// coefficients m * [1, c, |c|^2 E - c c^T] + `offset`, and `base` the
     /// (mass, first moment) the linear start adds its fit to.
@@ -49,7 +63,8 @@ pub(super) enum Shape {
 impl Shape {
     pub(super) fn width(&self, columns: usize) -> usize {
         match self {
-            Shape::Linear => columns,
+            Shape::Linear | Shape::Delay { .. } => columns,
+            Shape::Tilt { .. } => 2,
             Shape::Body { .. } => 4,
             Shape::Moment { .. } => 3,
         }
@@ -58,7 +73,18 @@ impl Shape {
     /// Coefficients and their Jacobian at theta.
     pub(super) fn map(&self, theta: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
         match self {
-            Shape::Linear => (theta.to_vec(), DMatrix::identity(theta.len(), theta.len())),
+            Shape::Linear | Shape::Delay { .. } => {
+                (theta.to_vec(), DMatrix::identity(theta.len(), theta.len()))
+            }
+            Shape::Tilt { gravity, .. } => {
+                let (a, b, g) = (theta[0], theta[1], gravity.norm());
+                // Beyond 90 degrees of tilt the root is clamped; the
+                // plausibility check refuses such fits anyway.
+                let along = (g * g - a * a - b * b).max(1e-12 * g * g).sqrt();
+                let jacobian =
+                    DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, -a / along, -b / along]);
+                (vec![a, b, along - g], jacobian)
+            }
             Shape::Body { offset, .. } => {
                 let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
                 let unit = point_mass(1.0, &c);
@@ -137,4 +163,139 @@ pub(super) fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<us
 
 pub(super) fn width(candidate: &Candidate) -> usize {
     candidate.shape.width(candidate.columns.len())
+}
+
+/// The fitted columns of the stacked data, filtered like the residual.
+pub(super) struct Columns {
+    /// qd, moving sign, qdd, 1 of each row's joint.
+    pub(super) own: [DVector<f64>; 4],
+    /// The generated model's sign(qd).
+    pub(super) coulomb_applied: DVector<f64>,
+    /// The regressor's inertial columns, ten per link.
+    pub(super) inertial: Vec<DVector<f64>>,
+    /// Gravity torques for unit gravity across the model's and along it (a
+    /// tilted base), when the model has a description and gravity: the
+    /// shape with the directions, and the three columns.
+    pub(super) tilt: Option<(Shape, [DVector<f64>; 3])>,
+    /// d/dt of the measured torque.
+    pub(super) measured_rate: DVector<f64>,
+    /// The longest sample period of the raw recordings, s.
+    pub(super) sample_period: f64,
+}
+
+/// Every candidate effect: per joint viscous and Coulomb friction,
+/// armature, a torque offset and a torque scale (the logged torque a scaled
+/// copy s tau of the applied one: the residual holds (1 - 1/s) of the
+/// logged torque, its column); for all joints at once a torque-state delay
+/// (column: minus the measured torque's rate, the first-order effect of
+/// logging the torque late) and a tilted base; per link a payload (the
+/// last) or an inertial error. The scale's and the delay's columns are
+/// measured torques, not the model's, so they carry every other effect the
+/// logged torque holds and do not bias its fit.
+pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Vec<Candidate> {
+    let n = data.dof;
+    let Columns {
+        own: [qd, sign, qdd, ones],
+        coulomb_applied,
+        mut inertial,
+        tilt,
+        measured_rate,
+        sample_period,
+    } = columns;
+    let own = |j: usize, f: &dyn Fn(usize) -> f64| {
+        DVector::from_fn(
+            data.residual.len(),
+            |r, _| if r % n == j { f(r) } else { 0.0 },
+        )
+    };
+    let mut list = Vec::new();
+    for j in 0..n {
+        let one = |kind, name, f: &dyn Fn(usize) -> f64| Candidate {
+            kind,
+            joint: Some(j),
+            link: None,
+            names: vec![name],
+            columns: vec![own(j, f)],
+            applied: None,
+            shape: Shape::Linear,
+        };
+        list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
+        list.push(Candidate {
+            applied: Some(own(j, &|r| coulomb_applied[r])),
+            ..one(Kind::CoulombFriction, "level", &|r| sign[r])
+        });
+        list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
+        list.push(one(Kind::TorqueOffset, "offset", &|r| ones[r]));
+        list.push(one(Kind::TorqueScale, "logged_share", &|r| {
+            data.measured[r]
+        }));
+    }
+    let whole = |kind, names: Vec<&'static str>, columns| Candidate {
+        kind,
+        joint: None,
+        link: None,
+        names,
+        columns,
+        applied: None,
+        shape: Shape::Linear,
+    };
+    list.push(Candidate {
+        shape: Shape::Delay { sample_period },
+        ..whole(Kind::TorqueDelay, vec!["delay"], vec![-measured_rate])
+    });
+    if let Some((shape, columns)) = tilt {
+        list.push(Candidate {
+            shape,
+            ..whole(
+                Kind::GravityDirection,
+                vec!["across_1", "across_2"],
+                columns.to_vec(),
+            )
+        });
+    }
+    for (k, link) in links.iter().enumerate().rev() {
+        let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
+        list.push(link_candidate(k, n, link, columns));
+    }
+    list
+}
+
+/// A payload on the last link, an inertial error of any other.
+fn link_candidate(k: usize, n: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidate {
+    let (mass, moment) = (
+        link.parameters[0],
+        Vector3::new(link.parameters[1], link.parameters[2], link.parameters[3]),
+    );
+    let last = k + 1 == n;
+    let shape = if last {
+        Shape::Body {
+            offset: [0.0; 10],
+            base_mass: 0.0,
+            base_moment: Vector3::zeros(),
+        }
+    } else {
+        let com = if mass > 0.0 {
+            moment / mass
+        } else {
+            Vector3::zeros()
+        };
+        Shape::Body {
+            offset: point_mass(-mass, &com),
+            base_mass: mass,
+            base_moment: moment,
+        }
+    };
+    Candidate {
+        kind: if last {
+            Kind::Payload
+        } else {
+            Kind::InertialError
+        },
+        joint: None,
+        link: Some((k, link.name.clone())),
+        names: vec!["mass", "cx", "cy", "cz"],
+        columns,
+        applied: None,
+        shape,
+    }
 }

@@ -2,10 +2,9 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::Kind;
-use super::candidate::{Candidate, Shape, point_mass};
+use super::candidate::{Candidate, Columns, Shape, candidates};
 use crate::dynamics::{Dynamics, model_torques};
-use crate::oracle::coulomb_sign;
+use crate::oracle::{self, Model, coulomb_sign};
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
 use crate::trajectory::Trajectory;
 
@@ -13,7 +12,7 @@ use crate::trajectory::Trajectory;
 const MIN_SEGMENT_SECONDS: f64 = 1.0;
 
 /// Stacked data: rows are (sample, joint) pairs, sample-major.
-pub(super) struct Stacked {
+pub(crate) struct Stacked {
     pub(super) residual: DVector<f64>,
     pub(super) measured: DVector<f64>,
     pub(super) qd: DVector<f64>,
@@ -44,7 +43,7 @@ pub(super) fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<(
 }
 
 /// A moving link of the model: its name and standard parameters.
-pub(super) struct Link {
+pub(crate) struct Link {
     pub(super) name: String,
     pub(super) parameters: [f64; 10],
 }
@@ -86,6 +85,13 @@ struct Rows {
     /// Own-joint features of the unexplained-structure check
     /// ([`GENERIC_FEATURES`]).
     generic: Vec<Vec<f64>>,
+    /// Gravity torques for unit gravity along two directions across the
+    /// model's gravity and for unit gravity along it (a tilted base), zero
+    /// without a description.
+    tilt: [Vec<f64>; 3],
+    /// d/dt of the measured torque (a delay's column: a torque logged late
+    /// is, to first order, the torque minus the delay times its rate).
+    measured_rate: Vec<f64>,
 }
 
 impl Rows {
@@ -101,6 +107,8 @@ impl Rows {
         .chain(self.own.iter_mut())
         .chain(self.inertial.iter_mut())
         .chain(self.generic.iter_mut())
+        .chain(self.tilt.iter_mut())
+        .chain([&mut self.measured_rate])
     }
 
     /// The first row where any signal is not finite.
@@ -110,6 +118,8 @@ impl Rows {
             .chain(self.own.iter())
             .chain(self.inertial.iter())
             .chain(self.generic.iter())
+            .chain(self.tilt.iter())
+            .chain([&self.measured_rate])
             .filter_map(|v| v.iter().position(|x| !x.is_finite()))
             .min()
     }
@@ -120,6 +130,8 @@ impl Rows {
             .iter_mut()
             .chain(self.inertial.iter_mut())
             .chain(self.generic.iter_mut())
+            .chain(self.tilt.iter_mut())
+            .chain([&mut self.measured_rate])
     }
 
     fn keep(&self, dof: usize, samples: &[usize]) -> Rows {
@@ -139,6 +151,8 @@ impl Rows {
             own: std::array::from_fn(|k| pick(&self.own[k])),
             inertial: self.inertial.iter().map(pick).collect(),
             generic: self.generic.iter().map(pick).collect(),
+            tilt: std::array::from_fn(|k| pick(&self.tilt[k])),
+            measured_rate: pick(&self.measured_rate),
         }
     }
 }
@@ -167,6 +181,7 @@ pub(super) fn stack(
     segments: Option<usize>,
 ) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
     let n = model.dof();
+    let tilted = tilted_models(model);
     let mut kept = Vec::new();
     let mut durations = Vec::new();
     let mut trimmed = 0;
@@ -187,7 +202,7 @@ pub(super) fn stack(
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
                 let rest = rest_velocities(raw, &traj, &settings);
-                let mut rows = rows(model, &traj, &rest)?;
+                let mut rows = rows(model, models(&tilted), &traj, &rest)?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -197,7 +212,11 @@ pub(super) fn stack(
                 let traj = settings.apply(raw)?;
                 let dt = step(&traj);
                 let rest = vec![MOVING; n];
-                (rows(model, &traj, &rest)?, (0..traj.len()).collect(), dt)
+                (
+                    rows(model, models(&tilted), &traj, &rest)?,
+                    (0..traj.len()).collect(),
+                    dt,
+                )
             }
         };
         if let Some(at) = rows.first_non_finite() {
@@ -240,7 +259,13 @@ pub(super) fn stack(
         all.qdd.extend(&rows.qdd);
         all.gravity.extend(&rows.gravity);
         all.coulomb_applied.extend(&rows.coulomb_applied);
-        let from = rows.own.iter().chain(&rows.inertial).chain(&rows.generic);
+        let from = rows
+            .own
+            .iter()
+            .chain(&rows.inertial)
+            .chain(&rows.generic)
+            .chain(&rows.tilt)
+            .chain([&rows.measured_rate]);
         for (to, from) in all.fitted_mut().zip(from) {
             to.extend(from);
         }
@@ -263,10 +288,15 @@ pub(super) fn stack(
         group,
         dof: n,
     };
-    let own = all.own.map(DVector::from_vec);
-    let inertial = all.inertial.into_iter().map(DVector::from_vec).collect();
-    let coulomb = DVector::from_vec(all.coulomb_applied);
-    let candidates = candidates(&data, &own, &coulomb, inertial, &links(model));
+    let columns = Columns {
+        own: all.own.map(DVector::from_vec),
+        coulomb_applied: DVector::from_vec(all.coulomb_applied),
+        inertial: all.inertial.into_iter().map(DVector::from_vec).collect(),
+        tilt: tilted.map(|(shape, _)| (shape, all.tilt.map(DVector::from_vec))),
+        measured_rate: DVector::from_vec(all.measured_rate),
+        sample_period: recordings.iter().map(step).fold(0.0, f64::max),
+    };
+    let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout))
 }
 
@@ -292,7 +322,12 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
 /// The model's residual and candidate columns at every sample of `traj`.
 /// `rest[j]`: joint j's speed below which it counts as at rest (see
 /// [`rest_velocities`]).
-fn rows(model: &dyn Dynamics, traj: &Trajectory, rest: &[f64]) -> anyhow::Result<Rows> {
+fn rows(
+    model: &dyn Dynamics,
+    tilted: Option<&[Model; 3]>,
+    traj: &Trajectory,
+    rest: &[f64],
+) -> anyhow::Result<Rows> {
     let n = model.dof();
     let predicted = model_torques(model, traj)?;
     let accel = traj
@@ -304,11 +339,13 @@ fn rows(model: &dyn Dynamics, traj: &Trajectory, rest: &[f64]) -> anyhow::Result
         ..Rows::default()
     };
     let rate = torque_rate(&predicted, step(traj));
+    let measured_rate = torque_rate(traj.tau(), step(traj));
     for s in 0..traj.len() {
         let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
         let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));
         let y = model.regressor(&q, &qd, &qdd)?;
         let load = model.gravity(&q)?;
+        let tilt = tilted.map(|m| m.each_ref().map(|m| oracle::gravity(m, &q)));
         for i in 0..n {
             let tau = traj.tau()[(s, i)];
             rows.residual.push(tau - predicted[(s, i)]);
@@ -328,9 +365,49 @@ fn rows(model: &dyn Dynamics, traj: &Trajectory, rest: &[f64]) -> anyhow::Result
             for (column, v) in rows.generic.iter_mut().zip(features) {
                 column.push(v);
             }
+            for (k, column) in rows.tilt.iter_mut().enumerate() {
+                column.push(tilt.as_ref().map_or(0.0, |t| t[k][i]));
+            }
+            rows.measured_rate.push(measured_rate[(s, i)]);
         }
     }
     Ok(rows)
+}
+
+/// A tilted base's candidate shape and the model with unit gravity along
+/// each of its two directions across the model's gravity (the gravity
+/// torque is linear in the gravity vector), or `None` without a
+/// description or without gravity.
+fn tilted_models(model: &dyn Dynamics) -> Option<(Shape, [Model; 3])> {
+    let description = crate::dynamics::parsed_description(model).ok()?;
+    let nominal = Model::from_description(&description);
+    let down = nominal.gravity.try_normalize(1e-9)?;
+    let across = tilt_directions(&down);
+    let models = [across[0], across[1], down].map(|direction| Model {
+        gravity: direction,
+        ..nominal.clone()
+    });
+    let shape = Shape::Tilt {
+        gravity: nominal.gravity,
+        across,
+    };
+    Some((shape, models))
+}
+
+fn models(tilted: &Option<(Shape, [Model; 3])>) -> Option<&[Model; 3]> {
+    tilted.as_ref().map(|(_, models)| models)
+}
+
+/// Two unit vectors perpendicular to the unit vector `down` and to each
+/// other: for gravity along -z, x and y of the base.
+pub(super) fn tilt_directions(down: &Vector3<f64>) -> [Vector3<f64>; 2] {
+    let helper = if down.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let first = (helper - down * down.dot(&helper)).normalize();
+    [first, down.cross(&first)]
 }
 
 /// Features of the unexplained-structure check, by regime: what a
@@ -392,81 +469,6 @@ fn smooth_per_joint(
         }
     }
     Ok(())
-}
-
-fn candidates(
-    data: &Stacked,
-    own_columns: &[DVector<f64>; 4],
-    coulomb_applied: &DVector<f64>,
-    mut inertial: Vec<DVector<f64>>,
-    links: &[Link],
-) -> Vec<Candidate> {
-    let n = data.dof;
-    let [qd, sign, qdd, ones] = own_columns;
-    let own = |j: usize, f: &dyn Fn(usize) -> f64| {
-        DVector::from_fn(
-            data.residual.len(),
-            |r, _| if r % n == j { f(r) } else { 0.0 },
-        )
-    };
-    let mut list = Vec::new();
-    for j in 0..n {
-        let one = |kind, name, f: &dyn Fn(usize) -> f64| Candidate {
-            kind,
-            joint: Some(j),
-            link: None,
-            names: vec![name],
-            columns: vec![own(j, f)],
-            applied: None,
-            shape: Shape::Linear,
-        };
-        list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
-        list.push(Candidate {
-            applied: Some(own(j, &|r| coulomb_applied[r])),
-            ..one(Kind::CoulombFriction, "level", &|r| sign[r])
-        });
-        list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
-        list.push(one(Kind::TorqueOffset, "offset", &|r| ones[r]));
-    }
-    for (k, link) in links.iter().enumerate().rev() {
-        let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
-        let (mass, moment) = (
-            link.parameters[0],
-            Vector3::new(link.parameters[1], link.parameters[2], link.parameters[3]),
-        );
-        let shape = if k + 1 == n {
-            Shape::Body {
-                offset: [0.0; 10],
-                base_mass: 0.0,
-                base_moment: Vector3::zeros(),
-            }
-        } else {
-            let com = if mass > 0.0 {
-                moment / mass
-            } else {
-                Vector3::zeros()
-            };
-            Shape::Body {
-                offset: point_mass(-mass, &com),
-                base_mass: mass,
-                base_moment: moment,
-            }
-        };
-        list.push(Candidate {
-            kind: if k + 1 == n {
-                Kind::Payload
-            } else {
-                Kind::InertialError
-            },
-            joint: None,
-            link: Some((k, link.name.clone())),
-            names: vec!["mass", "cx", "cy", "cz"],
-            columns,
-            applied: None,
-            shape,
-        });
-    }
-    list
 }
 
 /// With the thesis preprocessing, joints slower than this (rad/s) are taken

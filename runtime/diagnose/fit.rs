@@ -181,7 +181,11 @@ pub(super) fn fit(
     let mut at = 0;
     for &c in selected {
         match candidates[c].shape {
-            Shape::Linear => start_columns.extend(at..at + candidates[c].columns.len()),
+            Shape::Linear | Shape::Delay { .. } => {
+                start_columns.extend(at..at + candidates[c].columns.len())
+            }
+            // A small tilt barely changes the gravity along the model's.
+            Shape::Tilt { .. } => start_columns.extend(at..at + 2),
             Shape::Body { .. } => start_columns.extend(at..at + 4),
             // The mass column carries no information (that is why the shape
             // was chosen): start from the first-moment columns alone.
@@ -195,7 +199,11 @@ pub(super) fn fit(
     let mut at = 0;
     for &c in selected {
         match &candidates[c].shape {
-            Shape::Linear => {
+            Shape::Tilt { .. } => {
+                theta.extend(x0.rows(at, 2).iter());
+                at += 2;
+            }
+            Shape::Linear | Shape::Delay { .. } => {
                 let count = candidates[c].columns.len();
                 theta.extend(x0.rows(at, count).iter());
                 at += count;
@@ -277,7 +285,7 @@ pub(super) fn descend(
     };
     let nonlinear = selected
         .iter()
-        .any(|&c| !matches!(candidates[c].shape, Shape::Linear));
+        .any(|&c| !matches!(candidates[c].shape, Shape::Linear | Shape::Delay { .. }));
     let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
     let mut value = objective(&coef);
     let mut lambda = 1e-3;

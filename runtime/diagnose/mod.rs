@@ -116,6 +116,16 @@ pub enum Kind {
     /// corrected `mass` kg and `com` [x, y, z] m in the link frame, and the
     /// model's `nominal_mass`, `nominal_com`).
     InertialError,
+    /// The logged torque of a joint is a scaled copy of the applied one (a
+    /// torque-constant or gear-ratio error of the sensor): `scale`; a
+    /// property of the data, corrected with `--torque-scale J=S`.
+    TorqueScale,
+    /// The torque is logged `delay` s after the state it belongs to (all
+    /// joints); a property of the data, corrected with `--torque-delay S`.
+    TorqueDelay,
+    /// The base is tilted: gravity in the base frame is `gravity` (m/s^2),
+    /// `tilt_deg` away from the model's.
+    GravityDirection,
 }
 
 impl Kind {

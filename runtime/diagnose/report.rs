@@ -195,11 +195,27 @@ pub(super) fn effect(
             "nominal_first_moment".into(),
             json!([base_moment.x, base_moment.y, base_moment.z]),
         );
+    } else if let Shape::Tilt { gravity, across } = &candidate.shape {
+        let (a, b, g) = (values[0].0, values[1].0, gravity.norm());
+        let along = (g * g - a * a - b * b).max(0.0).sqrt();
+        let tilted = across[0] * a + across[1] * b + gravity * (along / g);
+        let angle = gravity.angle(&tilted).to_degrees();
+        let half = values[0].1.hypot(values[1].1) / gravity.norm();
+        parameters.insert("gravity".into(), json!([tilted.x, tilted.y, tilted.z]));
+        parameters.insert("tilt_deg".into(), json!(angle));
+        ci95.insert(
+            "tilt_deg".into(),
+            json!([
+                (angle - half.to_degrees()).max(0.0),
+                angle + half.to_degrees()
+            ]),
+        );
     } else {
         for (name, (value, half)) in candidate.names.iter().zip(values) {
             parameters.insert((*name).into(), json!(value));
             ci95.insert((*name).into(), json!([value - half, value + half]));
         }
+        data_correction(candidate, values, &mut parameters, &mut ci95);
     }
     Effect {
         kind: candidate.kind,
@@ -210,6 +226,31 @@ pub(super) fn effect(
         heldout_mse_removed: 0.0,
         heldout_share: 0.0,
     }
+}
+
+/// A property of the recording (a torque sensor's scale, a delay) is
+/// reported with the option that corrects the recording.
+fn data_correction(
+    candidate: &Candidate,
+    values: &[(f64, f64)],
+    parameters: &mut serde_json::Map<String, serde_json::Value>,
+    ci95: &mut serde_json::Map<String, serde_json::Value>,
+) {
+    use serde_json::json;
+    let (value, half) = values[0];
+    let correction = match (candidate.kind, candidate.joint) {
+        (Kind::TorqueScale, Some(j)) => {
+            // The residual holds (1 - 1/s) of the logged torque.
+            let scale = 1.0 / (1.0 - value);
+            let interval = [1.0 / (1.0 - value + half), 1.0 / (1.0 - value - half)];
+            parameters.insert("scale".into(), json!(scale));
+            ci95.insert("scale".into(), json!(interval));
+            format!("--torque-scale {}={scale:.4}", j + 1)
+        }
+        (Kind::TorqueDelay, _) => format!("--torque-delay {value:.5}"),
+        _ => return,
+    };
+    parameters.insert("correction".into(), json!(correction));
 }
 
 pub(super) fn per_joint(data: &Stacked, f: impl Fn(f64, f64) -> f64) -> Vec<f64> {

@@ -267,6 +267,9 @@ pub(super) fn physical(
     let value = values[0];
     let meaning = match candidate.kind {
         Kind::TorqueOffset => return Ok(()),
+        Kind::TorqueScale | Kind::TorqueDelay | Kind::GravityDirection => {
+            return plausible_data_effect(candidate, values, &at, percent);
+        }
         Kind::InertialError if matches!(candidate.shape, Shape::Moment { .. }) => {
             let Shape::Moment { base_mass, .. } = candidate.shape else {
                 unreachable!("matched above")
@@ -341,6 +344,71 @@ pub(super) fn physical(
     ))
 }
 
+/// Largest torque-scale error (either way), delay (s) and base tilt (rad)
+/// taken as that effect: beyond them the fit is the trace of something else
+/// (and a delay beyond it is outside the first-order model of its column).
+const PLAUSIBLE_SCALE_ERROR: f64 = 0.5;
+const PLAUSIBLE_DELAY: f64 = 0.1;
+const PLAUSIBLE_TILT: f64 = 0.5;
+
+fn plausible_data_effect(
+    candidate: &Candidate,
+    values: &[f64],
+    at: &str,
+    percent: f64,
+) -> Result<(), String> {
+    let (size, limit, what) = match candidate.kind {
+        Kind::TorqueScale => {
+            let scale = 1.0 / (1.0 - values[0]);
+            let error = if scale > 0.0 {
+                (scale - 1.0).abs()
+            } else {
+                f64::INFINITY
+            };
+            (error, PLAUSIBLE_SCALE_ERROR, "a torque scale error")
+        }
+        Kind::TorqueDelay => {
+            let Shape::Delay { sample_period } = candidate.shape else {
+                return Ok(());
+            };
+            if values[0].abs() <= sample_period {
+                return Err(format!(
+                    "all joints: the data fit a torque delay of {:.2} ms, within one sample \
+                     period ({:.2} ms): the logging convention (a torque held over the sample \
+                     interval reads half a sample early), not a delay; not named (it would cut a \
+                     joint's held-out MSE by {percent:.0}%)",
+                    1e3 * values[0],
+                    1e3 * sample_period
+                ));
+            }
+            (values[0].abs(), PLAUSIBLE_DELAY, "a delay (s)")
+        }
+        _ => {
+            let Shape::Tilt { gravity, .. } = &candidate.shape else {
+                return Ok(());
+            };
+            let across = values[0].hypot(values[1]);
+            (
+                across.atan2(gravity.norm()),
+                PLAUSIBLE_TILT,
+                "a base tilt (rad)",
+            )
+        }
+    };
+    if size <= limit {
+        return Ok(());
+    }
+    let place = if candidate.joint.is_some() {
+        at
+    } else {
+        "all joints"
+    };
+    Err(format!(
+        "{place}: the data fit {what} of {size:.3}, beyond the plausible {limit}: the trace of \
+         another effect; not named (it would cut a joint's held-out MSE by {percent:.0}%)"
+    ))
+}
+
 /// The fitted parameters of the last candidate of `trial` when it is
 /// significant: every parameter of a joint effect; a payload's mass (its COM
 /// components may be zero); for an inertial error, a change of the mass or
@@ -367,6 +435,8 @@ pub(super) fn significant(
     let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
     let ok = match (&candidate.kind, &candidate.shape) {
         (Kind::Payload, _) => t(0, 0.0) > min_t,
+        // A tilt may be about one axis only.
+        (Kind::GravityDirection, _) => (0..w).any(|k| t(k, 0.0) > min_t),
         (
             Kind::InertialError,
             Shape::Body {

@@ -90,7 +90,7 @@ fn effect_line(e: &Effect) -> String {
     let place = match (e.joint, &e.link) {
         (Some(j), _) => format!("joint {j}"),
         (None, Some(link)) => format!("link `{link}`"),
-        (None, None) => "the last link".to_string(),
+        (None, None) => "all joints".to_string(),
     };
     let values: Vec<String> = e
         .parameters
@@ -164,6 +164,11 @@ fn unit(kind: Kind, name: &str) -> &'static str {
         (Kind::ViscousFriction, _) => " N m s/rad",
         (Kind::CoulombFriction | Kind::TorqueOffset, _) => " N m",
         (Kind::Armature, _) => " kg m^2",
+        (Kind::TorqueScale | Kind::TorqueDelay, "correction") => "",
+        (Kind::TorqueScale, _) => "",
+        (Kind::TorqueDelay, _) => " s",
+        (Kind::GravityDirection, "tilt_deg") => " deg",
+        (Kind::GravityDirection, _) => " m/s^2",
         (_, "mass" | "nominal_mass") => " kg",
         (_, "first_moment" | "nominal_first_moment") => " kg m",
         _ => " m",

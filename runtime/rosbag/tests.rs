@@ -557,6 +557,8 @@ fn a_bag_is_diagnosed_like_a_csv() {
         ignored: vec![],
         topic: None,
         joints: Some(names(&["joint1", "joint2", "joint3"])),
+        torque_scales: vec![],
+        torque_delay: None,
     };
     let traj = input.read(&path, Some(3)).unwrap();
     assert!((traj.q()[(100, 1)] - recording.q()[(100, 1)]).abs() < 1e-9);

@@ -1,0 +1,114 @@
+//! Properties of the recording, not of the robot: a torque sensor's scale
+//! and a delay between torque and state. The diagnosis names them with the
+//! option that corrects the recording, `--apply` leaves the description
+//! alone and prints the command that shows the gap close, and that command
+//! does close it.
+
+use sdnn::trajectory::{Trajectory, write_csv};
+
+use crate::diagnose::raw_recordings;
+use crate::util::{Dir, oracle, sdnn, sdnn_json};
+
+const NOMINAL: &str = "kinova_gen3_lite_3dof";
+
+/// Joint 2's torque logged 8% high and every torque 15 ms late.
+fn distorted(recording: &Trajectory) -> Trajectory {
+    let mut tau = recording.tau().clone();
+    tau.column_mut(1).scale_mut(1.08);
+    let shift = 15; // samples at 1 kHz
+    let late = nalgebra::DMatrix::from_fn(tau.nrows(), tau.ncols(), |s, j| {
+        tau[(s.saturating_sub(shift), j)]
+    });
+    recording.with_tau(late).unwrap()
+}
+
+#[test]
+fn a_scaled_and_late_torque_is_named_corrected_and_closes_the_gap() {
+    let dir = Dir::new();
+    let files: Vec<String> = raw_recordings(&oracle(NOMINAL), 3)
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let path = dir.path().join(format!("r{k}.csv"));
+            write_csv(&path, &distorted(r)).unwrap();
+            path.to_str().unwrap().to_string()
+        })
+        .collect();
+    let mut args = vec!["diagnose", "--model", NOMINAL, "--format", "json", "--data"];
+    args.extend(files.iter().map(String::as_str));
+    let report = sdnn_json(&args);
+    let effects = report["effects"].as_array().unwrap();
+    let named: Vec<String> = effects
+        .iter()
+        .map(|e| format!("{} {}", e["kind"], e["joint"]))
+        .collect();
+    assert_eq!(effects.len(), 2, "{named:?}");
+    let scale = effects
+        .iter()
+        .find(|e| e["kind"] == "torque_scale")
+        .unwrap_or_else(|| panic!("{named:?}"));
+    assert_eq!(scale["joint"], 2);
+    let s = scale["parameters"]["scale"].as_f64().unwrap();
+    assert!((s - 1.08).abs() < 0.01, "scale {s}");
+    let delay = effects
+        .iter()
+        .find(|e| e["kind"] == "torque_delay")
+        .unwrap_or_else(|| panic!("{named:?}"));
+    let d = delay["parameters"]["delay"].as_f64().unwrap();
+    // 15 ms late, read half a sample early by the simulator's zero-order hold.
+    assert!((d - 0.0145).abs() < 0.0015, "delay {d}");
+
+    // --apply: the description stays, the printed command corrects the data.
+    let toml = dir.path().join("arm.toml");
+    std::fs::copy(
+        crate::util::root()
+            .join("models")
+            .join(format!("{NOMINAL}.toml")),
+        &toml,
+    )
+    .unwrap();
+    let before = std::fs::read_to_string(&toml).unwrap();
+    let mut args = vec!["diagnose", "--model", NOMINAL, "--apply", "--toml"];
+    args.push(toml.to_str().unwrap());
+    args.push("--data");
+    args.extend(files.iter().map(String::as_str));
+    let run = sdnn(&args);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&toml).unwrap(), before);
+    assert!(!dir.path().join("arm.toml.bak").exists());
+    let command = stderr
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("sdnn evaluate "))
+        .unwrap_or_else(|| panic!("no command printed: {stderr}"));
+    assert!(command.contains("--torque-scale 2=1.08"), "{command}");
+    assert!(command.contains("--torque-delay 0.01"), "{command}");
+    let mse = |extra: &[&str]| -> Vec<f64> {
+        let mut args = vec!["evaluate", "--model", NOMINAL, "--format", "json"];
+        args.extend(extra);
+        args.push("--data");
+        args.extend(files.iter().map(String::as_str));
+        sdnn_json(&args)["mse"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    let words: Vec<&str> = command.split_whitespace().collect();
+    let corrections: Vec<&str> = words
+        .windows(2)
+        .filter(|w| w[0] == "--torque-scale" || w[0] == "--torque-delay")
+        .flat_map(|w| w.iter().copied())
+        .collect();
+    let (raw, corrected) = (mse(&[]), mse(&corrections));
+    for j in 0..3 {
+        assert!(
+            corrected[j] <= 0.3 * raw[j],
+            "joint {}: {} -> {}",
+            j + 1,
+            raw[j],
+            corrected[j]
+        );
+    }
+}
