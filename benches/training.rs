@@ -34,6 +34,19 @@ fn training(c: &mut Criterion) {
                 .expect("training")
         })
     });
+    group.bench_function("one epoch, default study network, batch 256", |b| {
+        b.iter(|| {
+            Mlp::params()
+                .hidden(defaults.hidden.clone())
+                .batch_size(256)
+                .learning_rate(defaults.learning_rate)
+                .max_epochs(1)
+                .validation_fraction(0.0)
+                .patience(None)
+                .fit(black_box(&data))
+                .expect("training")
+        })
+    });
     group.finish();
 }
 

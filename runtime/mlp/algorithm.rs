@@ -141,8 +141,6 @@ struct Workspace {
     a: Vec<DMatrix<f64>>,
     /// dLoss/dz per layer.
     delta: Vec<DMatrix<f64>>,
-    /// Each layer's input, transposed (fan_in x rows).
-    xt: Vec<DMatrix<f64>>,
 }
 
 impl Workspace {
@@ -160,10 +158,6 @@ impl Workspace {
             z: per_layer(layers),
             a: per_layer(layers - 1),
             delta: per_layer(layers),
-            xt: sizes[..layers]
-                .iter()
-                .map(|&s| DMatrix::zeros(s, rows))
-                .collect(),
         }
     }
 
@@ -171,6 +165,71 @@ impl Workspace {
         copy_rows(&mut self.x, x, rows);
         copy_rows(&mut self.y, y, rows);
     }
+}
+
+/// Whether a factor of [`multiply`] enters transposed.
+#[derive(Clone, Copy, PartialEq)]
+enum Transposed {
+    Yes,
+    No,
+}
+
+/// `c = op(a) op(b)` by matrixmultiply's blocked kernel, a transpose taken
+/// by swapping strides (no copy); nalgebra's own `gemm_tr` is a loop of dot
+/// products.
+fn multiply(
+    c: &mut DMatrix<f64>,
+    (a, ta): (&DMatrix<f64>, Transposed),
+    (b, tb): (&DMatrix<f64>, Transposed),
+) {
+    // (rows, columns, row stride, column stride) of op(x), column-major x.
+    let layout = |x: &DMatrix<f64>, t: Transposed| {
+        let (r, k) = (x.nrows(), x.ncols());
+        match t {
+            Transposed::No => (r, k, 1, r as isize),
+            Transposed::Yes => (k, r, r as isize, 1),
+        }
+    };
+    let (m, k, rsa, csa) = layout(a, ta);
+    let (kb, n, rsb, csb) = layout(b, tb);
+    assert!(
+        k == kb && c.nrows() == m && c.ncols() == n,
+        "multiply: shapes do not match"
+    );
+    // SAFETY: the shapes are checked above, so every index the kernel forms
+    // from (m, k, n) and these strides lies inside its (dense, column-major)
+    // matrix; `c` is borrowed mutably and cannot alias `a` or `b`.
+    unsafe {
+        matrixmultiply::dgemm(
+            m,
+            k,
+            n,
+            1.0,
+            a.as_ptr(),
+            rsa,
+            csa,
+            b.as_ptr(),
+            rsb,
+            csb,
+            0.0,
+            c.as_mut_ptr(),
+            1,
+            m as isize,
+        );
+    }
+}
+
+/// Sum with four running totals (vectorizable, unlike a strict left fold).
+fn sum(x: &[f64]) -> f64 {
+    let mut totals = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rest: f64 = chunks.remainder().iter().sum();
+    for chunk in chunks {
+        for (t, v) in totals.iter_mut().zip(chunk) {
+            *t += v;
+        }
+    }
+    (totals[0] + totals[2]) + (totals[1] + totals[3]) + rest
 }
 
 fn copy_rows(dst: &mut DMatrix<f64>, src: &DMatrix<f64>, rows: &[usize]) {
@@ -186,8 +245,6 @@ struct Trainer<'p> {
     params: &'p MlpValidParams,
     layers: Vec<Layer>,
     grads: Vec<Layer>,
-    /// Each weight matrix transposed, refreshed before use in backprop.
-    wt: Vec<DMatrix<f64>>,
     m: Vec<Layer>,
     v: Vec<Layer>,
     step: u64,
@@ -199,15 +256,10 @@ impl<'p> Trainer<'p> {
             .iter()
             .map(|l| Layer::zeros(l.w.nrows(), l.w.ncols()))
             .collect();
-        let wt = layers
-            .iter()
-            .map(|l| DMatrix::zeros(l.w.ncols(), l.w.nrows()))
-            .collect();
         Self {
             params,
             layers,
             grads: zeros.clone(),
-            wt,
             m: zeros.clone(),
             v: zeros,
             step: 0,
@@ -232,7 +284,13 @@ impl<'p> Trainer<'p> {
             ws.z[l].gemm(1.0, input, &layer.w, 0.0);
             add_bias(&mut ws.z[l], &layer.b);
             if l < last {
-                ws.a[l].zip_apply(&ws.z[l], |a, z| *a = act.eval(z));
+                match act {
+                    // One tight loop over the slices, vectorized.
+                    Activation::Tanh => {
+                        super::tanh::tanh_slice(ws.a[l].as_mut_slice(), ws.z[l].as_slice())
+                    }
+                    _ => ws.a[l].zip_apply(&ws.z[l], |a, z| *a = act.eval(z)),
+                }
             }
         }
     }
@@ -255,23 +313,34 @@ impl<'p> Trainer<'p> {
         for l in (0..self.layers.len()).rev() {
             let input = if l == 0 { &ws.x } else { &ws.a[l - 1] };
             let grad = &mut self.grads[l];
-            // nalgebra's gemm_tr is a loop of dot products; an explicit
-            // transpose into a reused buffer lets the blocked matrixmultiply
-            // kernel do the work (strided views are unsound in its fallback).
-            input.transpose_to(&mut ws.xt[l]);
-            grad.w.gemm(1.0, &ws.xt[l], &ws.delta[l], 0.0);
+            multiply(
+                &mut grad.w,
+                (input, Transposed::Yes),
+                (&ws.delta[l], Transposed::No),
+            );
             for (g, col) in grad.b.iter_mut().zip(ws.delta[l].column_iter()) {
-                *g = col.sum();
+                *g = sum(col.as_slice());
             }
             if l == 0 {
                 break;
             }
             let (below, rest) = ws.delta.split_at_mut(l);
-            self.layers[l].w.transpose_to(&mut self.wt[l]);
-            below[l - 1].gemm(1.0, &rest[0], &self.wt[l], 0.0);
-            below[l - 1].zip_zip_apply(&ws.z[l - 1], &ws.a[l - 1], |d, z, a| {
-                *d *= act.derivative(z, a)
-            });
+            let w = &self.layers[l].w;
+            multiply(
+                &mut below[l - 1],
+                (&rest[0], Transposed::No),
+                (w, Transposed::Yes),
+            );
+            match act {
+                Activation::Tanh => {
+                    for (d, a) in below[l - 1].iter_mut().zip(ws.a[l - 1].iter()) {
+                        *d *= 1.0 - a * a;
+                    }
+                }
+                _ => below[l - 1].zip_zip_apply(&ws.z[l - 1], &ws.a[l - 1], |d, z, a| {
+                    *d *= act.derivative(z, a)
+                }),
+            }
         }
     }
 
