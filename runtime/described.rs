@@ -26,7 +26,7 @@ pub struct Described {
 const INERTIAL_NAMES: [&str; 10] = [
     "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
 ];
-const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
+use codegen::EFFECT_NAMES;
 
 impl Described {
     /// Reads and validates the description at `path` (named by its stem).

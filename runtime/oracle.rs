@@ -13,8 +13,9 @@ use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, Vector3};
 
 /// Number of standard inertial parameters per body.
 pub const INERTIAL_PARAMETERS: usize = 10;
-/// Number of joint-effect parameters per joint: armature, viscous, coulomb, offset.
-pub const EFFECT_PARAMETERS: usize = 4;
+/// Number of joint-effect parameters per joint: armature, viscous, coulomb,
+/// offset, coulomb_asymmetry, spring (`JointEffects::parameters`).
+pub const EFFECT_PARAMETERS: usize = 6;
 
 /// A serial chain ready for numeric dynamics.
 #[derive(Debug, Clone)]
@@ -66,21 +67,18 @@ impl Model {
     }
 
     /// All parameters in the generated regressor's order: per body the ten
-    /// inertial parameters, then per joint armature, viscous, coulomb, offset.
+    /// inertial parameters, then per joint its effects
+    /// ([`JointEffects::parameters`]).
     pub fn parameters(&self) -> DVector<f64> {
         let inertial = self.bodies.iter().flat_map(|b| b.parameters);
-        let effects = self.bodies.iter().flat_map(|b| effect_values(&b.effects));
+        let effects = self.bodies.iter().flat_map(|b| b.effects.parameters());
         DVector::from_iterator(self.parameter_count(), inertial.chain(effects))
     }
 
-    /// 14 per degree of freedom.
+    /// 16 per degree of freedom.
     pub fn parameter_count(&self) -> usize {
         self.dof() * (INERTIAL_PARAMETERS + EFFECT_PARAMETERS)
     }
-}
-
-fn effect_values(e: &JointEffects) -> [f64; EFFECT_PARAMETERS] {
-    [e.armature, e.viscous, e.coulomb, e.offset]
 }
 
 /// Coulomb friction direction: sign(qd) with sign(0) = 0, as the generated code.
@@ -100,14 +98,24 @@ pub fn rnea(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DVector<f64> {
         model.bodies.iter().map(|b| b.parameters).collect();
     let mut tau = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
     for (i, body) in model.bodies.iter().enumerate() {
-        tau[i] += effects_torque(&body.effects, qd[i], qdd[i]);
+        tau[i] += effects_torque(&body.effects, qd[i], qdd[i]) + spring_torque(&body.effects, q[i]);
     }
     tau
 }
 
-/// Joint-effect torque of one joint.
+/// Joint-effect torque of one joint, its spring aside (see [`spring_torque`]).
 pub fn effects_torque(e: &JointEffects, qd: f64, qdd: f64) -> f64 {
-    e.armature * qdd + e.viscous * qd + e.coulomb * coulomb_sign(qd) + e.offset
+    let sign = coulomb_sign(qd);
+    e.armature * qdd
+        + e.viscous * qd
+        + e.coulomb * sign
+        + e.coulomb_asymmetry * sign * sign
+        + e.offset
+}
+
+/// A joint spring's torque: a potential force, part of [`gravity`].
+pub fn spring_torque(e: &JointEffects, q: f64) -> f64 {
+    e.spring * (q - e.spring_rest)
 }
 
 /// Joint-space inertia matrix M(q), armature included, column by column
@@ -127,11 +135,16 @@ pub fn crba(model: &Model, q: &[f64]) -> DMatrix<f64> {
     m
 }
 
-/// Generalized gravity g(q): rigid-body torque at rest, without effects.
+/// Potential torque g(q): the rigid-body torque at rest plus the joint
+/// springs, without the other effects.
 pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
     let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
     let zero = vec![0.0; model.dof()];
-    rigid_body_torque(model, &params, model.gravity, q, &zero, &zero)
+    let mut g = rigid_body_torque(model, &params, model.gravity, q, &zero, &zero);
+    for (i, body) in model.bodies.iter().enumerate() {
+        g[i] += spring_torque(&body.effects, q[i]);
+    }
+    g
 }
 
 /// Coriolis and centrifugal vector c(q, qd), without gravity or effects.
@@ -142,7 +155,7 @@ pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
 }
 
 /// Regressor Y(q, qd, qdd) with Y * model.parameters() == rnea(q, qd, qdd)
-/// (dim dof x 14*dof): RNEA with one unit parameter at a time.
+/// (dim dof x 16*dof): RNEA with one unit parameter at a time.
 pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f64> {
     let n = model.dof();
     let mut y = DMatrix::zeros(n, model.parameter_count());
@@ -156,8 +169,11 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f
         let base = n * INERTIAL_PARAMETERS + b * EFFECT_PARAMETERS;
         y[(b, base)] = qdd[b];
         y[(b, base + 1)] = qd[b];
-        y[(b, base + 2)] = coulomb_sign(qd[b]);
+        let sign = coulomb_sign(qd[b]);
+        y[(b, base + 2)] = sign;
         y[(b, base + 3)] = 1.0;
+        y[(b, base + 4)] = sign * sign;
+        y[(b, base + 5)] = q[b] - model.bodies[b].effects.spring_rest;
     }
     y
 }

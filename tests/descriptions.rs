@@ -411,3 +411,32 @@ fn a_huge_axis_is_normalized_without_overflow() {
     let axis = description.chain().bodies[0].axis;
     assert_eq!(axis, Vector3::new(0.0, 0.0, 1.0));
 }
+
+#[test]
+fn asymmetric_friction_and_springs_are_validated_and_in_the_dynamics() {
+    let joint = "axis = [0.0, 1.0, 0.0]\n";
+    let with = |effects: &str| format!("{joint}effects = {{ {effects} }}\n");
+    let e = error_after(joint, &with("coulomb = 0.1, coulomb_asymmetry = 0.2"));
+    assert_mentions(&e, &["coulomb_asymmetry", "j2", "negative"]);
+    let e = error_after(joint, &with("spring = -1.0"));
+    assert_mentions(&e, &["spring", "j2", ">= 0"]);
+    let e = error_after(joint, &with("spring = 1.0, spring_rest = 1e5"));
+    assert_mentions(&e, &["spring_rest"]);
+    // Valid: the numeric dynamics hold both (the spring in g(q) too).
+    let source = VALID.replacen(
+        joint,
+        &with("coulomb = 0.3, coulomb_asymmetry = -0.1, spring = 2.0, spring_rest = 0.25"),
+        1,
+    );
+    let model = Model::from_description(&parse(&source).unwrap());
+    let plain = Model::from_description(&parse(VALID).unwrap());
+    let (q, qdd) = ([0.2, 0.7], [0.0, 0.0]);
+    for (qd, friction) in [(0.5, 0.3 - 0.1), (-0.5, -0.3 - 0.1), (0.0, 0.0)] {
+        let qd = [0.1, qd];
+        let difference =
+            oracle::rnea(&model, &q, &qd, &qdd)[1] - oracle::rnea(&plain, &q, &qd, &qdd)[1];
+        assert_close(difference, friction + 2.0 * (0.7 - 0.25), "tau difference");
+    }
+    let g = oracle::gravity(&model, &q)[1] - oracle::gravity(&plain, &q)[1];
+    assert_close(g, 2.0 * (0.7 - 0.25), "spring in g(q)");
+}

@@ -36,13 +36,19 @@ pub fn against_lagrangian(
         let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
         let y = eval(&traced.regressor);
         let tau = eval(&traced.tau);
+        let width = crate::schema::PARAMETERS_PER_JOINT * n;
         for i in 0..n {
             let expected: Vec<f64> = rigid.regressor[i].iter().map(|p| p.evaluate(&x)).collect();
-            let got = &y[i * 14 * n..i * 14 * n + 10 * n];
+            let got = &y[i * width..i * width + 10 * n];
             compare(&format!("regressor row {}", i + 1), got, &expected)?;
             let e = chain.bodies[i].effects;
-            let effects =
-                e.armature * qdd[i] + e.viscous * qd[i] + e.coulomb * x[5 * i + 4] + e.offset;
+            let sign = x[crate::recursive::INPUTS_PER_JOINT * i + 4];
+            let effects = e.armature * qdd[i]
+                + e.viscous * qd[i]
+                + e.coulomb * sign
+                + e.coulomb_asymmetry * sign * sign
+                + e.spring * (q[i] - e.spring_rest)
+                + e.offset;
             let lagrange: f64 = expected.iter().zip(&parameters).map(|(c, p)| c * p).sum();
             compare(&format!("tau[{}]", i + 1), &[tau[i]], &[lagrange + effects])?;
         }

@@ -383,23 +383,40 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
         ));
     }
     let e = &joint.effects;
-    if !finite(&[e.armature, e.viscous, e.coulomb, e.offset]) {
+    let effects = e.parameters();
+    if !finite(&effects) || !e.spring_rest.is_finite() {
         return Err(Located::new(
             at.key("effects"),
             "effects must be finite numbers",
         ));
     }
-    let effects = [e.armature, e.viscous, e.coulomb, e.offset];
+    plausible(
+        &[e.spring_rest],
+        PLAUSIBLE_ANGLE,
+        at.key("effects").key("spring_rest"),
+        "spring rest angle (rad)",
+    )?;
     plausible(
         &effects,
         PLAUSIBLE_EFFECT,
         at.key("effects"),
         "effect coefficient",
     )?;
+    if e.coulomb_asymmetry.abs() > e.coulomb {
+        return Err(Located::new(
+            at.key("effects").key("coulomb_asymmetry"),
+            format!(
+                "coulomb_asymmetry of joint `{}` is {}, beyond coulomb ({}): one direction's \
+                 friction level (coulomb - |coulomb_asymmetry|) would be negative",
+                joint.name, e.coulomb_asymmetry, e.coulomb
+            ),
+        ));
+    }
     for (key, value) in [
         ("armature", e.armature),
         ("viscous", e.viscous),
         ("coulomb", e.coulomb),
+        ("spring", e.spring),
     ] {
         if value < 0.0 {
             return Err(Located::new(
@@ -466,7 +483,7 @@ pub const PLAUSIBLE_MASS: f64 = 1e5; // kg
 pub const PLAUSIBLE_LENGTH: f64 = 1e2; // m (origins, centres of mass)
 pub const PLAUSIBLE_INERTIA: f64 = 1e5; // kg m^2
 pub const PLAUSIBLE_ANGLE: f64 = 1e2; // rad (rpy, locked angles)
-pub const PLAUSIBLE_EFFECT: f64 = 1e6; // armature, friction, offset
+pub const PLAUSIBLE_EFFECT: f64 = 1e6; // armature, friction, offset, spring
 pub const PLAUSIBLE_GRAVITY: f64 = 1e3; // m/s^2
 
 /// A located error when a value exceeds `limit`.

@@ -28,7 +28,8 @@ impl Argument {
 }
 
 /// The program inputs, derived from the arguments: per joint i (1-based in
-/// names) sin and cos of q_i, qd_i, qdd_i and sign(qd_i).
+/// names) sin and cos of q_i, qd_i, qdd_i, sign(qd_i) and q_i itself (a
+/// joint spring's stretch).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Input {
     Sin(usize),
@@ -36,6 +37,7 @@ pub enum Input {
     Qd(usize),
     Qdd(usize),
     Sign(usize),
+    Q(usize),
 }
 
 impl Input {
@@ -46,6 +48,7 @@ impl Input {
             Input::Qd(i) => format_ident!("qd{}", i + 1),
             Input::Qdd(i) => format_ident!("qdd{}", i + 1),
             Input::Sign(i) => format_ident!("sign_qd{}", i + 1),
+            Input::Q(i) => format_ident!("q{}", i + 1),
         }
     }
 }
@@ -178,6 +181,10 @@ impl Function<'_> {
         }
         for i in 0..self.dof {
             let index = int(i);
+            if has(Input::Q(i)) {
+                let angle = Input::Q(i).ident();
+                lines.push(quote! { let #angle = q[#index]; });
+            }
             if has(Input::Qd(i)) {
                 let v = Input::Qd(i).ident();
                 lines.push(quote! { let #v = qd[#index]; });
@@ -526,7 +533,7 @@ impl Printer<'_> {
 
 fn argument_of(input: Input) -> Argument {
     match input {
-        Input::Sin(_) | Input::Cos(_) => Argument::Q,
+        Input::Sin(_) | Input::Cos(_) | Input::Q(_) => Argument::Q,
         Input::Qd(_) | Input::Sign(_) => Argument::Qd,
         Input::Qdd(_) => Argument::Qdd,
     }

@@ -174,7 +174,7 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
         },
         Spec {
             name: "gravity",
-            doc: " Generalized gravity g(q) = dU/dq, N m.",
+            doc: " Potential torque g(q) = dU/dq: gravity and joint springs, N m.",
             arguments: Q,
             shape: Shape::Vector(n),
             roots: traced.gravity.clone(),
@@ -188,7 +188,7 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
         },
         Spec {
             name: "effects",
-            doc: " Joint effects without armature: viscous*qd + coulomb*sign(qd) + offset, N m.",
+            doc: " Joint effects without armature: viscous*qd + coulomb*sign(qd) + coulomb_asymmetry*|sign(qd)| + offset, N m.",
             arguments: &[Argument::Qd],
             shape: Shape::Vector(n),
             roots: traced.effects.clone(),
@@ -197,7 +197,7 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
             name: "regressor",
             doc: " Regressor Y(q, qd, qdd) with tau = Y * PARAMETERS (see PARAMETER_NAMES).",
             arguments: ALL,
-            shape: Shape::Matrix(n, 14 * n),
+            shape: Shape::Matrix(n, crate::schema::PARAMETERS_PER_JOINT * n),
             roots: traced.regressor.clone(),
         },
     ]

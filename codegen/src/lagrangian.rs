@@ -39,7 +39,8 @@ pub struct RigidBodyTorque {
 }
 
 /// Program inputs of a chain with `dof` joints, in the order the polynomial
-/// exponent vectors use: per joint sin, cos, qd, qdd, sign(qd).
+/// exponent vectors use: per joint sin, cos, qd, qdd, sign(qd), q
+/// (`recursive::INPUTS_PER_JOINT`).
 pub fn inputs(dof: usize) -> Vec<Input> {
     (0..dof)
         .flat_map(|i| {
@@ -49,6 +50,7 @@ pub fn inputs(dof: usize) -> Vec<Input> {
                 Input::Qd(i),
                 Input::Qdd(i),
                 Input::Sign(i),
+                Input::Q(i),
             ]
         })
         .collect()
@@ -167,12 +169,14 @@ fn split_by_parameter(tau: &Polynomial, at: &VariableIndex) -> Vec<Poly> {
         let exponents = tau.exponents(t);
         let parameter = (0..10 * dof).find(|&k| exponents[at.parameter(k / 10, k % 10)] > 0);
         let Some(k) = parameter else { continue };
-        let mut program = vec![0u32; 5 * dof];
+        let per_joint = crate::recursive::INPUTS_PER_JOINT;
+        let mut program = vec![0u32; per_joint * dof];
         for j in 0..dof {
-            program[5 * j] = u32::from(exponents[at.sin(j)]);
-            program[5 * j + 1] = u32::from(exponents[at.cos(j)]);
-            program[5 * j + 2] = u32::from(exponents[at.qd(j)]);
-            program[5 * j + 3] = u32::from(exponents[at.qdd(j)]);
+            let at_joint = &mut program[per_joint * j..per_joint * (j + 1)];
+            at_joint[0] = u32::from(exponents[at.sin(j)]);
+            at_joint[1] = u32::from(exponents[at.cos(j)]);
+            at_joint[2] = u32::from(exponents[at.qd(j)]);
+            at_joint[3] = u32::from(exponents[at.qdd(j)]);
         }
         columns[k].push((program, coefficient.to_f64()));
     }

@@ -42,6 +42,7 @@ pub use error::DescriptionError;
 #[cfg(feature = "symbolic")]
 pub use generate::{Cost, Generated, generate};
 pub use reduce::{Body, Chain, Inertial};
+pub use schema::{EFFECT_CONSTANTS, EFFECT_NAMES, EFFECTS_PER_JOINT, PARAMETERS_PER_JOINT};
 
 /// The generated file of a model, relative to the models directory.
 pub fn generated_file_name(model: &str) -> String {

@@ -10,25 +10,23 @@ use quote::{format_ident, quote};
 use crate::description::Description;
 use crate::emit::{Input, Printer, int, literal};
 use crate::recursive::{Definition, Traced};
+use crate::schema::{EFFECT_CONSTANTS, EFFECT_NAMES, PARAMETERS_PER_JOINT};
 
 /// Names of the ten inertial parameters of body i, Pinocchio's order (the
 /// `PARAMETER_NAMES` stems).
 pub const INERTIAL_NAMES: [&str; 10] = [
     "m", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
 ];
-/// Names of the joint-effect parameters of joint i.
-pub const EFFECT_NAMES: [&str; 4] = ["armature", "viscous", "coulomb", "offset"];
 /// The Rust constants holding those parameters, with `{i}` the 1-based index.
 const INERTIAL_CONSTANTS: [&str; 10] = [
     "MASS", "MX", "MY", "MZ", "IXX", "IXY", "IYY", "IXZ", "IYZ", "IZZ",
 ];
-const EFFECT_CONSTANTS: [&str; 4] = ["ARMATURE", "VISCOUS", "COULOMB", "OFFSET"];
 
 /// The constant items, in file order.
 pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -> TokenStream {
     let chain = description.chain();
     let n = chain.bodies.len();
-    let (dof, count) = (int(n), int(14 * n));
+    let (dof, count) = (int(n), int(PARAMETERS_PER_JOINT * n));
     let joints = chain.bodies.iter().map(|b| Literal::string(&b.joint));
     let groups = traced.groups.iter().map(|group| {
         let doc = format!(" {}", group.doc);
@@ -58,7 +56,7 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
     quote! {
         /// Number of moving joints.
         pub const DOF: usize = #dof;
-        /// Number of regressor parameters: 10 inertial per link, 4 effects per joint.
+        /// Number of regressor parameters: 10 inertial per link, 6 effects per joint.
         pub const NUM_PARAMETERS: usize = #count;
         /// Names of the moving joints, base first.
         pub const JOINT_NAMES: [&str; #dof] = [#(#joints),*];
@@ -66,7 +64,8 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
         #derived
         /// Parameter values of this description, in regressor column order:
         /// per link m, m*c (x, y, z), inertia about the link origin (xx, xy, yy,
-        /// xz, yz, zz); then per joint armature, viscous, coulomb, offset.
+        /// xz, yz, zz); then per joint armature, viscous, coulomb, offset,
+        /// coulomb_asymmetry, spring.
         pub const PARAMETERS: [f64; #count] = [#(#values),*];
         /// Names of PARAMETERS, suffixed by the 1-based link or joint.
         pub const PARAMETER_NAMES: [&str; #count] = [#(#names),*];

@@ -94,7 +94,9 @@ pub struct Limits {
 }
 
 /// Per-joint effects added to the rigid-body torque:
-/// `armature*qdd + viscous*qd + coulomb*sign(qd) + offset`.
+/// `armature*qdd + viscous*qd + coulomb*sign(qd) + coulomb_asymmetry*|sign(qd)|
+/// + offset`, and a joint spring `spring*(q - spring_rest)` (a potential
+/// torque, part of the generated `gravity`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointEffects {
@@ -110,6 +112,57 @@ pub struct JointEffects {
     /// Constant torque offset, N m.
     #[serde(default)]
     pub offset: f64,
+    /// Direction-dependent dry friction, N m, added while the joint moves
+    /// either way: the Coulomb levels are coulomb + coulomb_asymmetry
+    /// forwards and coulomb - coulomb_asymmetry backwards.
+    #[serde(default)]
+    pub coulomb_asymmetry: f64,
+    /// Joint spring stiffness, N m/rad (a gravity-balancing spring, a cable).
+    #[serde(default)]
+    pub spring: f64,
+    /// The spring's rest angle, rad.
+    #[serde(default)]
+    pub spring_rest: f64,
+}
+
+/// Names of the joint-effect parameters of joint i (the order of
+/// `JointEffects::parameters`).
+pub const EFFECT_NAMES: [&str; EFFECTS_PER_JOINT] = [
+    "armature",
+    "viscous",
+    "coulomb",
+    "offset",
+    "coulomb_asymmetry",
+    "spring",
+];
+/// Regressor columns per joint: its effects.
+pub const EFFECTS_PER_JOINT: usize = 6;
+/// Regressor columns per degree of freedom: ten inertial and the effects.
+pub const PARAMETERS_PER_JOINT: usize = 10 + EFFECTS_PER_JOINT;
+/// The generated constants of the effects, `JOINT{i}_` + these.
+pub const EFFECT_CONSTANTS: [&str; EFFECTS_PER_JOINT] = [
+    "ARMATURE",
+    "VISCOUS",
+    "COULOMB",
+    "OFFSET",
+    "COULOMB_ASYMMETRY",
+    "SPRING",
+];
+
+impl JointEffects {
+    /// The effect parameters in regressor order (see `EFFECT_NAMES`); the
+    /// spring's rest angle is not one (the regressor's spring column is
+    /// q - spring_rest).
+    pub fn parameters(&self) -> [f64; 6] {
+        [
+            self.armature,
+            self.viscous,
+            self.coulomb,
+            self.offset,
+            self.coulomb_asymmetry,
+            self.spring,
+        ]
+    }
 }
 
 pub(crate) fn default_axis() -> [f64; 3] {

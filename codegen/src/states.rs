@@ -1,10 +1,12 @@
 //! Joint states for checks: program inputs of a state, and a small
 //! deterministic generator (the cross-check and the tests need no RNG crate).
 
-/// Program inputs of a state: per joint sin, cos, qd, qdd, sign(qd).
+/// Program inputs of a state: per joint sin, cos, qd, qdd, sign(qd), q
+/// (sign(0) = 0, as the generated code).
 pub(crate) fn inputs(q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+    let sign = |x: f64| if x == 0.0 { 0.0 } else { x.signum() };
     (0..q.len())
-        .flat_map(|i| [q[i].sin(), q[i].cos(), qd[i], qdd[i], qd[i].signum()])
+        .flat_map(|i| [q[i].sin(), q[i].cos(), qd[i], qdd[i], sign(qd[i]), q[i]])
         .collect()
 }
 

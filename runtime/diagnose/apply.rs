@@ -100,6 +100,12 @@ pub fn apply_to_text(
             // Properties of the recording, not of the robot: corrected
             // with evaluate's and diagnose's options, not in the TOML.
             (Kind::TorqueScale | Kind::TorqueDelay, _) => {}
+            (Kind::JointSpring, Some(joint)) => {
+                let name = joints.get(joint - 1).context("joint index out of range")?;
+                let stiffness = value("stiffness").context("spring without stiffness")?;
+                let rest = value("rest").context("spring without rest angle")?;
+                add_spring(&mut doc, name, stiffness, rest)?;
+            }
             (Kind::GravityDirection, _) => {
                 let gravity: Vec<f64> = vector(&effect.parameters, "gravity")?
                     .into_iter()
@@ -131,6 +137,40 @@ pub fn apply_to_text(
         }
     }
     Ok(doc.to_string())
+}
+
+/// Adds a spring k (q - rest) to a joint's: the stiffnesses add, the rest
+/// angle is the stiffness-weighted mean (k0 (q - r0) + k (q - r) =
+/// (k0 + k)(q - r')).
+fn add_spring(doc: &mut DocumentMut, joint: &str, stiffness: f64, rest: f64) -> Result<()> {
+    let (k0, r0) = (
+        joint_effect(doc, joint, "spring"),
+        joint_effect(doc, joint, "spring_rest"),
+    );
+    let total = k0 + stiffness;
+    let mean_rest = if total != 0.0 {
+        (k0 * r0 + stiffness * rest) / total
+    } else {
+        rest
+    };
+    add_joint_effect(doc, joint, "spring", stiffness)?;
+    let delta = mean_rest - r0;
+    add_joint_effect(doc, joint, "spring_rest", delta)
+}
+
+/// A joint's effect value in the document (0 when absent).
+fn joint_effect(doc: &DocumentMut, joint: &str, key: &str) -> f64 {
+    doc.get("joints")
+        .and_then(Item::as_array_of_tables)
+        .and_then(|joints| {
+            joints
+                .iter()
+                .find(|t| t.get("name").and_then(Item::as_str) == Some(joint))
+        })
+        .and_then(|t| t.get("effects"))
+        .and_then(|e| e.get(key))
+        .and_then(number)
+        .unwrap_or(0.0)
 }
 
 fn add_joint_effect(doc: &mut DocumentMut, joint: &str, key: &str, delta: f64) -> Result<()> {
@@ -461,6 +501,30 @@ mod tests {
             effect(Kind::TorqueDelay, None, serde_json::json!({"delay": 0.01})),
         ]);
         assert_eq!(apply_to_text(SOURCE, &data, &["j1"], "a").unwrap(), SOURCE);
+    }
+
+    #[test]
+    fn a_spring_adds_to_the_joints_keeping_the_torque() {
+        let d = diagnosis(vec![effect(
+            Kind::JointSpring,
+            Some(1),
+            serde_json::json!({"stiffness": 3.0, "rest": 0.5, "constant": -1.5}),
+        )]);
+        let source = SOURCE.replace(
+            "viscous = 0.1",
+            "viscous = 0.1, spring = 1, spring_rest = -0.1",
+        );
+        let out = apply_to_text(&source, &d, &["j1"], "a").unwrap();
+        // 1 (q + 0.1) + 3 (q - 0.5) = 4 (q - 0.35).
+        assert!(out.contains("spring = 4.0"), "{out}");
+        let rest: f64 = out
+            .split("spring_rest = ")
+            .nth(1)
+            .and_then(|t| t.split([' ', '}']).next())
+            .and_then(|t| t.parse().ok())
+            .unwrap();
+        assert!((rest - 0.35).abs() < 1e-12, "{out}");
+        codegen::Description::parse(&out, "arm", std::path::Path::new("arm.toml")).unwrap();
     }
 
     #[test]

@@ -167,8 +167,8 @@ pub(super) fn width(candidate: &Candidate) -> usize {
 
 /// The fitted columns of the stacked data, filtered like the residual.
 pub(super) struct Columns {
-    /// qd, moving sign, qdd, 1 of each row's joint.
-    pub(super) own: [DVector<f64>; 4],
+    /// qd, moving sign, qdd, 1, q of each row's joint.
+    pub(super) own: [DVector<f64>; 5],
     /// The generated model's sign(qd).
     pub(super) coulomb_applied: DVector<f64>,
     /// The regressor's inertial columns, ten per link.
@@ -184,24 +184,27 @@ pub(super) struct Columns {
 }
 
 /// Every candidate effect: per joint viscous and Coulomb friction,
-/// armature, a torque offset and a torque scale (the logged torque a scaled
-/// copy s tau of the applied one: the residual holds (1 - 1/s) of the
-/// logged torque, its column); for all joints at once a torque-state delay
+/// armature, a torque offset, a spring (columns q and 1: stiffness k and
+/// -k * rest) and a torque scale (the logged torque a scaled copy s tau of
+/// the applied one: the residual holds (s - 1) of the torque, column the
+/// model's torque; the measured torque would hold the residual itself and
+/// "explain" any of it); for all joints at once a torque-state delay
 /// (column: minus the measured torque's rate, the first-order effect of
-/// logging the torque late) and a tilted base; per link a payload (the
-/// last) or an inertial error. The scale's and the delay's columns are
-/// measured torques, not the model's, so they carry every other effect the
-/// logged torque holds and do not bias its fit.
+/// logging the torque late; a signal's rate is uncorrelated with it, so the
+/// measured rate carries every effect the logged torque holds without
+/// regressing the residual on itself) and a tilted base; per link a
+/// payload (the last) or an inertial error.
 pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Vec<Candidate> {
     let n = data.dof;
     let Columns {
-        own: [qd, sign, qdd, ones],
+        own: [qd, sign, qdd, ones, angle],
         coulomb_applied,
         mut inertial,
         tilt,
         measured_rate,
         sample_period,
     } = columns;
+    let model_torque = &data.measured - &data.residual;
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
         DVector::from_fn(
             data.residual.len(),
@@ -226,9 +229,12 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         });
         list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
         list.push(one(Kind::TorqueOffset, "offset", &|r| ones[r]));
-        list.push(one(Kind::TorqueScale, "logged_share", &|r| {
-            data.measured[r]
-        }));
+        list.push(one(Kind::TorqueScale, "scale_error", &|r| model_torque[r]));
+        list.push(Candidate {
+            names: vec!["stiffness", "constant"],
+            columns: vec![own(j, &|r| angle[r]), own(j, &|r| ones[r])],
+            ..one(Kind::JointSpring, "", &|_| 0.0)
+        });
     }
     let whole = |kind, names: Vec<&'static str>, columns| Candidate {
         kind,

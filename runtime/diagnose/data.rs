@@ -78,8 +78,8 @@ struct Rows {
     qdd: Vec<f64>,
     gravity: Vec<f64>,
     coulomb_applied: Vec<f64>,
-    /// Fitted own-joint columns: qd, moving sign, qdd, 1.
-    own: [Vec<f64>; 4],
+    /// Fitted own-joint columns: qd, moving sign, qdd, 1, q.
+    own: [Vec<f64>; 5],
     /// The regressor's inertial columns.
     inertial: Vec<Vec<f64>>,
     /// Own-joint features of the unexplained-structure check
@@ -355,7 +355,7 @@ fn rows(
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
             let sign = moving_sign(qd[i], rest[i]);
-            for (k, v) in [qd[i], sign, qdd[i], 1.0].into_iter().enumerate() {
+            for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i]].into_iter().enumerate() {
                 rows.own[k].push(v);
             }
             for (k, column) in rows.inertial.iter_mut().enumerate() {

@@ -126,6 +126,9 @@ pub enum Kind {
     /// The base is tilted: gravity in the base frame is `gravity` (m/s^2),
     /// `tilt_deg` away from the model's.
     GravityDirection,
+    /// A joint spring (a gravity-balancing spring, a cable): `stiffness`
+    /// N m/rad about the `rest` angle, rad.
+    JointSpring,
 }
 
 impl Kind {

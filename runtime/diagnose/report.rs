@@ -229,7 +229,8 @@ pub(super) fn effect(
 }
 
 /// A property of the recording (a torque sensor's scale, a delay) is
-/// reported with the option that corrects the recording.
+/// reported with the option that corrects the recording; a spring's rest
+/// angle is derived from its fitted constant.
 fn data_correction(
     candidate: &Candidate,
     values: &[(f64, f64)],
@@ -240,14 +241,24 @@ fn data_correction(
     let (value, half) = values[0];
     let correction = match (candidate.kind, candidate.joint) {
         (Kind::TorqueScale, Some(j)) => {
-            // The residual holds (1 - 1/s) of the logged torque.
-            let scale = 1.0 / (1.0 - value);
-            let interval = [1.0 / (1.0 - value + half), 1.0 / (1.0 - value - half)];
+            let scale = 1.0 + value;
+            let interval = [scale - half, scale + half];
             parameters.insert("scale".into(), json!(scale));
             ci95.insert("scale".into(), json!(interval));
             format!("--torque-scale {}={scale:.4}", j + 1)
         }
         (Kind::TorqueDelay, _) => format!("--torque-delay {value:.5}"),
+        (Kind::JointSpring, _) if value != 0.0 => {
+            // k q + c = k (q - rest): rest = -c / k.
+            let (c, dc) = values[1];
+            let rest = -c / value;
+            parameters.insert("rest".into(), json!(rest));
+            ci95.insert(
+                "rest".into(),
+                json!([rest - dc / value.abs(), rest + dc / value.abs()]),
+            );
+            return;
+        }
         _ => return,
     };
     parameters.insert("correction".into(), json!(correction));

@@ -319,6 +319,10 @@ pub(super) fn physical(
             Kind::CoulombFriction => {
                 "the residual opposes friction's direction: check the torque sign convention"
             }
+            Kind::JointSpring => {
+                "torque that pushes the joint away from a rest angle is not a spring (a link \
+                 modelled too light about this joint?)"
+            }
             _ => "the last link is lighter than modelled (an inertial error, not a payload)",
         },
         Kind::Payload => {
@@ -358,15 +362,11 @@ fn plausible_data_effect(
     percent: f64,
 ) -> Result<(), String> {
     let (size, limit, what) = match candidate.kind {
-        Kind::TorqueScale => {
-            let scale = 1.0 / (1.0 - values[0]);
-            let error = if scale > 0.0 {
-                (scale - 1.0).abs()
-            } else {
-                f64::INFINITY
-            };
-            (error, PLAUSIBLE_SCALE_ERROR, "a torque scale error")
-        }
+        Kind::TorqueScale => (
+            values[0].abs(),
+            PLAUSIBLE_SCALE_ERROR,
+            "a torque scale error",
+        ),
         Kind::TorqueDelay => {
             let Shape::Delay { sample_period } = candidate.shape else {
                 return Ok(());
@@ -435,8 +435,10 @@ pub(super) fn significant(
     let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
     let ok = match (&candidate.kind, &candidate.shape) {
         (Kind::Payload, _) => t(0, 0.0) > min_t,
-        // A tilt may be about one axis only.
+        // A tilt may be about one axis only; a spring's constant (its rest
+        // angle times its stiffness) may well be zero.
         (Kind::GravityDirection, _) => (0..w).any(|k| t(k, 0.0) > min_t),
+        (Kind::JointSpring, _) => t(0, 0.0) > min_t,
         (
             Kind::InertialError,
             Shape::Body {

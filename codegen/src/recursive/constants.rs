@@ -50,8 +50,11 @@ pub struct JointLeaves {
     pub translation: V3,
     pub rotation: [V3; 3],
     pub axis: V3,
-    /// armature, viscous, coulomb, offset.
-    pub effects: [NodeId; 4],
+    /// armature, viscous, coulomb, offset, coulomb_asymmetry, spring (the
+    /// order of `JointEffects::parameters`).
+    pub effects: [NodeId; 6],
+    /// The spring's rest angle.
+    pub spring_rest: NodeId,
 }
 
 /// The chain's leaves and the listing the generated file starts with.
@@ -151,17 +154,21 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         named(dag, format!("JOINT{i}_AXIS_{}", AXES[k]), value, true)
     });
     let e = body.effects;
-    let effects = [
-        ("ARMATURE", e.armature),
-        ("VISCOUS", e.viscous),
-        ("COULOMB", e.coulomb),
-        ("OFFSET", e.offset),
-    ]
-    .map(|(quantity, value)| named(dag, format!("JOINT{i}_{quantity}"), value, false));
+    let effects = std::array::from_fn(|k| {
+        let quantity = crate::schema::EFFECT_CONSTANTS[k];
+        named(
+            dag,
+            format!("JOINT{i}_{quantity}"),
+            e.parameters()[k],
+            false,
+        )
+    });
+    let spring_rest = named(dag, format!("JOINT{i}_SPRING_REST"), e.spring_rest, false);
     let doc = format!(
         "Joint {i} ({:?}): origin in the previous link's axes (m), rotation of its \
          frame (entries within 1e-15 of 0 or +-1 made exact), unit axis; armature \
-         (kg m^2), viscous (N m s/rad), Coulomb (N m) and offset (N m).",
+         (kg m^2), viscous (N m s/rad), Coulomb (N m), offset (N m), Coulomb \
+         asymmetry (N m), spring (N m/rad) and its rest angle (rad).",
         body.joint
     );
     let leaves = JointLeaves {
@@ -169,6 +176,7 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         rotation,
         axis,
         effects,
+        spring_rest,
     };
     (Group { doc, items }, leaves)
 }

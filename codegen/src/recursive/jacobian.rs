@@ -5,6 +5,7 @@ use super::newton_euler::{Motion, Rotation};
 use super::regroup::BodyParameters;
 use super::{QD, QDD, SIGN, Tracer, V3};
 use crate::program::NodeId;
+use crate::schema::{EFFECTS_PER_JOINT, PARAMETERS_PER_JOINT};
 
 impl Tracer<'_> {
     /// `twists[k][j]`, j <= k: the unit twist of joint j in body k's axes,
@@ -81,22 +82,26 @@ impl Tracer<'_> {
         let n = motions.len();
         let zero = self.dag.constant(0.0);
         let one = self.dag.constant(1.0);
-        let mut y = vec![zero; n * 14 * n];
+        let width = PARAMETERS_PER_JOINT * n;
+        let mut y = vec![zero; n * width];
         for (k, motion) in motions.iter().enumerate() {
             for (p, (force, moment)) in self.unit_wrenches(motion).into_iter().enumerate() {
                 for (i, &(w, v)) in twists[k].iter().enumerate() {
                     let a = self.dot(v, force);
                     let b = self.dot(w, moment);
-                    y[i * 14 * n + 10 * k + p] = self.dag.sum2(a, b);
+                    y[i * width + 10 * k + p] = self.dag.sum2(a, b);
                 }
             }
         }
         for i in 0..n {
-            let row = i * 14 * n + 10 * n + 4 * i;
+            let row = i * width + 10 * n + EFFECTS_PER_JOINT * i;
+            let sign = self.input(i, SIGN);
             y[row] = self.input(i, QDD);
             y[row + 1] = self.input(i, QD);
-            y[row + 2] = self.input(i, SIGN);
+            y[row + 2] = sign;
             y[row + 3] = one;
+            y[row + 4] = self.dag.product2(sign, sign);
+            y[row + 5] = self.spring_stretch(i);
         }
         y
     }

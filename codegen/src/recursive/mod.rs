@@ -33,13 +33,14 @@ use newton_euler::{JointState, Rotation};
 use regroup::BodyParameters;
 
 /// Program input positions; the layout of `lagrangian::inputs`:
-/// per joint sin, cos, qd, qdd, sign(qd).
-pub const INPUTS_PER_JOINT: usize = 5;
+/// per joint sin, cos, qd, qdd, sign(qd), q.
+pub const INPUTS_PER_JOINT: usize = 6;
 const SIN: usize = 0;
 const COS: usize = 1;
 const QD: usize = 2;
 const QDD: usize = 3;
 const SIGN: usize = 4;
+const Q: usize = 5;
 
 type V3 = [NodeId; 3];
 
@@ -54,9 +55,11 @@ pub struct Traced {
     pub mass_matrix: Vec<NodeId>,
     pub gravity: Vec<NodeId>,
     pub coriolis: Vec<NodeId>,
-    /// viscous qd + coulomb sign(qd) + offset per joint.
+    /// viscous qd + coulomb sign(qd) + coulomb_asymmetry |sign(qd)| + offset
+    /// per joint.
     pub effects: Vec<NodeId>,
-    /// n x 14n: ten inertial columns per body, then four effect columns per joint.
+    /// n x 16n: ten inertial columns per body, then six effect columns per
+    /// joint.
     pub regressor: Vec<NodeId>,
 }
 
@@ -98,11 +101,21 @@ pub fn trace(chain: &Chain) -> Traced {
     let tau = (0..n)
         .map(|i| {
             let effects = t.effects(i, true);
-            t.dag.sum2(rigid[i], effects)
+            let spring = t.spring(i);
+            let with_effects = t.dag.sum2(rigid[i], effects);
+            t.dag.sum2(with_effects, spring)
         })
         .collect();
     let rest = t.forward(&rotations, &at_rest, base_acceleration);
-    let gravity = t.backward(&rotations, &rest);
+    let gravity = t
+        .backward(&rotations, &rest)
+        .into_iter()
+        .enumerate()
+        .map(|(i, g)| {
+            let spring = t.spring(i);
+            t.dag.sum2(g, spring)
+        })
+        .collect();
     let moving = t.forward(&rotations, &no_acceleration, gravity_off);
     let coriolis = t.backward(&rotations, &moving);
     let effects = (0..n).map(|i| t.effects(i, false)).collect();

@@ -1,7 +1,7 @@
 //! tau, gravity and Coriolis by the recursive Newton-Euler form: joint
 //! rotations, motions outwards from the base, wrenches inwards from the tip.
 
-use super::{COS, QD, QDD, SIGN, SIN, Tracer, V3, constants};
+use super::{COS, Q, QD, QDD, SIGN, SIN, Tracer, V3, constants};
 use crate::program::{Dag, NodeId};
 
 /// A joint rotation as a product of stages (rows each), parent-most first.
@@ -240,18 +240,37 @@ impl Tracer<'_> {
         tau
     }
 
-    /// armature*qdd (optional) + viscous*qd + coulomb*sign(qd) + offset.
+    /// armature*qdd (optional) + viscous*qd + coulomb*sign(qd) +
+    /// coulomb_asymmetry*sign(qd)^2 + offset.
     pub(super) fn effects(&mut self, i: usize, with_armature: bool) -> NodeId {
-        let [armature, viscous, coulomb, offset] = self.joint(i).effects;
+        let [armature, viscous, coulomb, offset, asymmetry, _] = self.joint(i).effects;
         let zero = self.dag.constant(0.0);
         let armature = if with_armature { armature } else { zero };
+        let sign = self.input(i, SIGN);
+        let moving = self.dag.product2(sign, sign);
         let terms = [
             (armature, self.input(i, QDD)),
             (viscous, self.input(i, QD)),
-            (coulomb, self.input(i, SIGN)),
+            (coulomb, sign),
+            (asymmetry, moving),
         ]
         .map(|(k, x)| self.dag.product2(k, x));
         let sum = self.sum(&terms);
         self.dag.sum2(sum, offset)
+    }
+
+    /// The joint spring's torque spring*(q - spring_rest).
+    pub(super) fn spring(&mut self, i: usize) -> NodeId {
+        let stretch = self.spring_stretch(i);
+        let stiffness = self.joint(i).effects[5];
+        self.dag.product2(stiffness, stretch)
+    }
+
+    /// q - spring_rest: the regressor's spring column.
+    pub(super) fn spring_stretch(&mut self, i: usize) -> NodeId {
+        let q = self.input(i, Q);
+        let rest = self.joint(i).spring_rest;
+        let minus_rest = self.dag.negate(rest);
+        self.dag.sum2(q, minus_rest)
     }
 }

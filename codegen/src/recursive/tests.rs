@@ -31,7 +31,14 @@ const PLANAR: &str = r#"
     parent = "upper"
     child = "fore"
     origin = { xyz = [0.8, 0.0, 0.0] }
+    effects = { coulomb = 0.3, coulomb_asymmetry = 0.05, spring = 2.0, spring_rest = 0.4 }
 "#;
+
+/// The elbow's effects in `PLANAR` without its spring, and its spring.
+fn elbow_effects(q: f64, qd: f64) -> (f64, f64) {
+    let sign = qd.signum();
+    (0.3 * sign + 0.05 * sign * sign, 2.0 * (q - 0.4))
+}
 
 /// The textbook closed form of the planar two-link arm (gravity along -y).
 fn closed_form(q: &[f64], qd: &[f64], qdd: &[f64]) -> [f64; 2] {
@@ -124,12 +131,18 @@ fn check_against_reference(model: &str, samples: usize) {
         let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
         let zeros = vec![0.0; n];
         let mut tau = rnea(chain, &params, &q, &qd, &qdd, true);
+        let mut gravity = rnea(chain, &params, &q, &zeros, &zeros, true);
         for (i, e) in effects.iter().enumerate() {
-            tau[i] +=
-                e.armature * qdd[i] + e.viscous * qd[i] + e.coulomb * qd[i].signum() + e.offset;
+            let (sign, spring) = (qd[i].signum(), e.spring * (q[i] - e.spring_rest));
+            tau[i] += e.armature * qdd[i]
+                + e.viscous * qd[i]
+                + e.coulomb * sign
+                + e.coulomb_asymmetry * sign * sign
+                + e.offset
+                + spring;
+            gravity[i] += spring;
         }
         assert_close("tau", &eval(&traced.tau), &tau);
-        let gravity = rnea(chain, &params, &q, &zeros, &zeros, true);
         assert_close("gravity", &eval(&traced.gravity), &gravity);
         let coriolis = rnea(chain, &params, &q, &qd, &zeros, false);
         assert_close("coriolis", &eval(&traced.coriolis), &coriolis);
@@ -151,7 +164,8 @@ fn check_against_reference(model: &str, samples: usize) {
             let mut unit = vec![[0.0; 10]; n];
             unit[k][p] = 1.0;
             let column = rnea(chain, &unit, &q, &qd, &qdd, true);
-            let got: Vec<f64> = (0..n).map(|i| y[i * 14 * n + 10 * k + p]).collect();
+            let width = crate::schema::PARAMETERS_PER_JOINT * n;
+            let got: Vec<f64> = (0..n).map(|i| y[i * width + 10 * k + p]).collect();
             assert_close("regressor", &got, &column);
         }
     }
@@ -181,7 +195,16 @@ fn planar_arm_matches_its_closed_form() {
         (tau[0] - rigid[0] - effects).abs() < 1e-12,
         "{tau:?} {rigid:?}"
     );
-    assert!((tau[1] - rigid[1]).abs() < 1e-12);
+    let (elbow, spring) = elbow_effects(q[1], qd[1]);
+    assert!((tau[1] - rigid[1] - elbow - spring).abs() < 1e-12);
+    // Backwards, the elbow's dry friction is coulomb - asymmetry.
+    let x = inputs(&q, &[0.7, 0.4], &qdd);
+    let forwards = traced.dag.evaluate(&traced.tau, &x)[1];
+    let x = inputs(&q, &[0.7, -0.4], &qdd);
+    let backwards = traced.dag.evaluate(&traced.tau, &x)[1];
+    let rigid_difference =
+        closed_form(&q, &[0.7, 0.4], &qdd)[1] - closed_form(&q, &[0.7, -0.4], &qdd)[1];
+    assert!((forwards - backwards - rigid_difference - 0.6).abs() < 1e-12);
 }
 
 #[test]
@@ -193,10 +216,13 @@ fn functions_are_consistent() {
         .bodies
         .iter()
         .flat_map(|b| b.inertial.standard_parameters())
-        .chain(description.chain().bodies.iter().flat_map(|b| {
-            let e = b.effects;
-            [e.armature, e.viscous, e.coulomb, e.offset]
-        }))
+        .chain(
+            description
+                .chain()
+                .bodies
+                .iter()
+                .flat_map(|b| b.effects.parameters()),
+        )
         .collect();
     let (q, qd, qdd) = ([-0.6, 2.0], [1.5, 0.9], [-0.2, 0.8]);
     let x = inputs(&q, &qd, &qdd);
@@ -208,10 +234,16 @@ fn functions_are_consistent() {
         eval(&traced.coriolis),
     );
     let y = eval(&traced.regressor);
+    let width = params.len();
     for i in 0..2 {
-        let effects = if i == 0 { 0.3 * qd[0] + 0.2 - 0.1 } else { 0.0 };
+        // g includes the elbow's spring.
+        let effects = if i == 0 {
+            0.3 * qd[0] + 0.2 - 0.1
+        } else {
+            elbow_effects(q[1], qd[1]).0
+        };
         let split = m[2 * i] * qdd[0] + m[2 * i + 1] * qdd[1] + c[i] + g[i] + effects;
-        let regressed: f64 = (0..28).map(|k| y[28 * i + k] * params[k]).sum();
+        let regressed: f64 = (0..width).map(|k| y[width * i + k] * params[k]).sum();
         assert!(
             (tau[i] - split).abs() < 1e-12,
             "joint {i}: {} vs {split}",
