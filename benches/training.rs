@@ -21,32 +21,24 @@ fn training(c: &mut Criterion) {
     let mut group = c.benchmark_group("mlp");
     group.throughput(Throughput::Elements(samples as u64));
     group.sample_size(10);
-    group.bench_function("one epoch, default study network", |b| {
-        b.iter(|| {
-            Mlp::params()
-                .hidden(defaults.hidden.clone())
-                .batch_size(defaults.batch_size)
-                .learning_rate(defaults.learning_rate)
-                .max_epochs(1)
-                .validation_fraction(0.0)
-                .patience(None)
-                .fit(black_box(&data))
-                .expect("training")
-        })
-    });
-    group.bench_function("one epoch, default study network, batch 256", |b| {
-        b.iter(|| {
-            Mlp::params()
-                .hidden(defaults.hidden.clone())
-                .batch_size(256)
-                .learning_rate(defaults.learning_rate)
-                .max_epochs(1)
-                .validation_fraction(0.0)
-                .patience(None)
-                .fit(black_box(&data))
-                .expect("training")
-        })
-    });
+    for (name, batch) in [
+        ("one epoch, default study network", defaults.batch_size),
+        ("one epoch, default study network, batch 256", 256),
+    ] {
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                Mlp::params()
+                    .hidden(defaults.hidden.clone())
+                    .batch_size(batch)
+                    .learning_rate(defaults.learning_rate)
+                    .max_epochs(1)
+                    .validation_fraction(0.0)
+                    .patience(None)
+                    .fit(black_box(&data))
+                    .expect("training")
+            })
+        });
+    }
     group.finish();
 }
 

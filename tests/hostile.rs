@@ -31,6 +31,21 @@ fn tau(input: &Path, output: Option<&Path>) -> Output {
     sdnn(&args)
 }
 
+/// Two small preprocessed 2-joint recordings for `train`.
+fn two_recordings(dir: &Dir) -> (std::path::PathBuf, std::path::PathBuf) {
+    let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
+    for k in 0..400 {
+        let t = f64::from(k) * 0.01;
+        rows.push_str(&format!(
+            "{t},{},{},0,0,0,0,{},0\n",
+            t.sin(),
+            t.cos(),
+            t.sin()
+        ));
+    }
+    (dir.write("d.csv", &rows), dir.write("e.csv", &rows))
+}
+
 const STATES: &str = "q1,q2,qd1,qd2,qdd1,qdd2\n0.1,0.2,0.3,0.4,0.5,0.6\n";
 
 #[test]
@@ -175,18 +190,7 @@ fn implausible_values_and_time_steps_are_located_errors() {
 #[test]
 fn a_network_for_another_arm_is_refused() {
     let dir = Dir::new();
-    let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
-    for k in 0..400 {
-        let t = f64::from(k) * 0.01;
-        rows.push_str(&format!(
-            "{t},{},{},0,0,0,0,{},0\n",
-            t.sin(),
-            t.cos(),
-            t.sin()
-        ));
-    }
-    let data = dir.write("d.csv", &rows);
-    let more = dir.write("e.csv", &rows);
+    let (data, more) = two_recordings(&dir);
     let net = dir.path().join("net.json");
     let run = sdnn(&[
         "train",
@@ -308,18 +312,7 @@ fn file_errors_say_the_os_error_once_and_binary_text_plainly() {
 #[test]
 fn dash_is_standard_output_for_files_and_refused_for_folders() {
     let dir = Dir::new();
-    let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
-    for k in 0..400 {
-        let t = f64::from(k) * 0.01;
-        rows.push_str(&format!(
-            "{t},{},{},0,0,0,0,{},0\n",
-            t.sin(),
-            t.cos(),
-            t.sin()
-        ));
-    }
-    let data = dir.write("d.csv", &rows);
-    let more = dir.write("e.csv", &rows);
+    let (data, more) = two_recordings(&dir);
     let data_args = [data.to_str().unwrap(), more.to_str().unwrap()];
     let mut args = vec!["train", "--out", "-", "--epochs", "2", "--hidden", "4"];
     args.extend(["--preprocessed", "--format", "json"]);
