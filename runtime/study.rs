@@ -92,11 +92,19 @@ pub struct ModelResult {
 }
 
 /// The study's outcome.
+fn one_based<S: serde::Serializer>(indices: &[usize], serializer: S) -> Result<S::Ok, S::Error> {
+    serializer.collect_seq(indices.iter().map(|i| i + 1))
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct StudyResult {
     pub plant: String,
     pub nominal: String,
+    /// Indices into the recordings; written 1-based in the JSON, as the
+    /// files are numbered (`trajectory_01.csv` is 1).
+    #[serde(serialize_with = "one_based")]
     pub train_trajectories: Vec<usize>,
+    #[serde(serialize_with = "one_based")]
     pub test_trajectories: Vec<usize>,
     pub models: Vec<ModelResult>,
     /// Analytical-model test MSE with each filter (the zero-phase comparison).

@@ -242,8 +242,9 @@ fn study_on_a_measured_recording_splits_it_in_time() {
         "json",
     ]);
     assert_eq!(result["plant"], "measured data");
-    assert_eq!(result["train_trajectories"], serde_json::json!([0, 1, 2]));
-    assert_eq!(result["test_trajectories"], serde_json::json!([3]));
+    // 1-based, as the files and pieces are numbered.
+    assert_eq!(result["train_trajectories"], serde_json::json!([1, 2, 3]));
+    assert_eq!(result["test_trajectories"], serde_json::json!([4]));
     for model in result["models"].as_array().unwrap() {
         assert!(model["mse_mean"].as_f64().unwrap().is_finite());
         assert!(model["open_loop_rms"].is_null());
