@@ -6,7 +6,7 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::draw::{AXIS_DESC_FONT, LABEL_FONT, TITLE_FONT, legend, tick_label};
+use super::draw::{AXIS_DESC_FONT, LABEL_FONT, TITLE_FONT, axis_tick, legend};
 use super::prep::{in_limits, pad_linear};
 use super::{Area, BarChart, DrawResult, PlotReport, colour};
 use crate::report::error::InputError;
@@ -150,7 +150,7 @@ pub(crate) fn draw(root: &Area<'_>, chart: &BarChart, prep: &PreparedBars) -> Dr
         .label_style(LABEL_FONT)
         .axis_desc_style(AXIS_DESC_FONT)
         .y_desc(chart.y_label.as_str())
-        .y_label_formatter(&|v| tick_label(*v))
+        .y_label_formatter(&|v| axis_tick(*v, &prep.y_range))
         .draw()?;
     let slot = GROUP_WIDTH / chart.bars.len() as f64;
     for (i, (model, _, _)) in chart.bars.iter().enumerate() {

@@ -71,14 +71,25 @@ where
         .y_desc(plot.y_label.as_str())
         .label_style(LABEL_FONT)
         .axis_desc_style(AXIS_DESC_FONT)
-        .x_label_formatter(&|v| tick_label(*v))
-        .y_label_formatter(&|v| tick_label(*v))
+        .x_label_formatter(&|v| axis_tick(*v, &prep.x_range))
+        .y_label_formatter(&|v| axis_tick(*v, &prep.y_range))
         .draw()?;
     for (i, (s, p)) in plot.series.iter().zip(&prep.series).enumerate() {
         draw_series(&mut chart, s, p, colour(i))?;
     }
     let corner = legend_corner(prep, plot.log_y);
     legend(&mut chart, corner)
+}
+
+/// A tick label on an axis spanning `range`: a tick within 1e-9 of the span
+/// from zero is zero (the tick arithmetic leaves `-2.22e-16` there).
+pub(crate) fn axis_tick(v: f64, range: &Range<f64>) -> String {
+    let span = (range.end - range.start).abs();
+    if v.abs() <= 1e-9 * span {
+        "0".to_string()
+    } else {
+        tick_label(v)
+    }
 }
 
 /// A tick label: [`format_sig`] without trailing zeros (`0.5`, `1e-4`).

@@ -248,6 +248,8 @@ fn tick_labels_drop_trailing_zeros() {
     assert_eq!(draw::tick_label(1e-4), "1e-4");
     assert_eq!(draw::tick_label(2.5e6), "2.5e6");
     assert_eq!(draw::tick_label(1234.0), "1234");
+    assert_eq!(draw::axis_tick(-2.220446049250313e-16, &(-1.0..1.0)), "0");
+    assert_eq!(draw::axis_tick(1e-12, &(0.0..1e-11)), "1e-12");
 }
 
 #[test]
