@@ -65,8 +65,13 @@ impl Moments {
         let (mut a, mut b) = (DMatrix::zeros(k, k), DVector::zeros(k));
         for g in (0..self.xx.len()).filter(|&g| keep(g)) {
             for j in 0..self.xx[g].len() {
-                a += self.xx[g][j].select_rows(columns).select_columns(columns);
-                b += self.xr[g][j].select_rows(columns);
+                let (xx, xr) = (&self.xx[g][j], &self.xr[g][j]);
+                for (c, &column) in columns.iter().enumerate() {
+                    b[c] += xr[column];
+                    for (r, &row) in columns.iter().enumerate() {
+                        a[(r, c)] += xx[(row, column)];
+                    }
+                }
             }
         }
         (a, b)
@@ -79,8 +84,13 @@ impl Moments {
 
     /// Residual sum of squares of group g, joint j after subtracting X theta.
     pub(super) fn sse(&self, g: usize, j: usize, columns: &[usize], theta: &DVector<f64>) -> f64 {
-        let a = self.xx[g][j].select_rows(columns).select_columns(columns);
-        let b = self.xr[g][j].select_rows(columns);
+        // Gathered directly: selecting rows first copies whole rows of the
+        // moment matrix (hundreds of columns for a 7-joint arm).
+        let (xx, xr) = (&self.xx[g][j], &self.xr[g][j]);
+        let a = DMatrix::from_fn(columns.len(), columns.len(), |r, c| {
+            xx[(columns[r], columns[c])]
+        });
+        let b = DVector::from_fn(columns.len(), |r, _| xr[columns[r]]);
         // Clamped: rounding can push a near-perfect fit's sum below zero.
         (self.rr[g][j] - 2.0 * theta.dot(&b) + theta.dot(&(a * theta))).max(0.0)
     }
