@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::error::TrainError;
 use super::hyperparams::{Activation, MlpValidParams};
+use super::linalg::{Transposed, multiply, sum};
 use super::{Dataset, EpochReport, History, Mlp};
 
 /// Separate ChaCha streams keep split, init and shuffling independent: a
@@ -165,71 +166,6 @@ impl Workspace {
         copy_rows(&mut self.x, x, rows);
         copy_rows(&mut self.y, y, rows);
     }
-}
-
-/// Whether a factor of [`multiply`] enters transposed.
-#[derive(Clone, Copy, PartialEq)]
-enum Transposed {
-    Yes,
-    No,
-}
-
-/// `c = op(a) op(b)` by matrixmultiply's blocked kernel, a transpose taken
-/// by swapping strides (no copy); nalgebra's own `gemm_tr` is a loop of dot
-/// products.
-fn multiply(
-    c: &mut DMatrix<f64>,
-    (a, ta): (&DMatrix<f64>, Transposed),
-    (b, tb): (&DMatrix<f64>, Transposed),
-) {
-    // (rows, columns, row stride, column stride) of op(x), column-major x.
-    let layout = |x: &DMatrix<f64>, t: Transposed| {
-        let (r, k) = (x.nrows(), x.ncols());
-        match t {
-            Transposed::No => (r, k, 1, r as isize),
-            Transposed::Yes => (k, r, r as isize, 1),
-        }
-    };
-    let (m, k, rsa, csa) = layout(a, ta);
-    let (kb, n, rsb, csb) = layout(b, tb);
-    assert!(
-        k == kb && c.nrows() == m && c.ncols() == n,
-        "multiply: shapes do not match"
-    );
-    // SAFETY: the shapes are checked above, so every index the kernel forms
-    // from (m, k, n) and these strides lies inside its (dense, column-major)
-    // matrix; `c` is borrowed mutably and cannot alias `a` or `b`.
-    unsafe {
-        matrixmultiply::dgemm(
-            m,
-            k,
-            n,
-            1.0,
-            a.as_ptr(),
-            rsa,
-            csa,
-            b.as_ptr(),
-            rsb,
-            csb,
-            0.0,
-            c.as_mut_ptr(),
-            1,
-            m as isize,
-        );
-    }
-}
-
-/// Sum with four running totals (vectorizable, unlike a strict left fold).
-fn sum(x: &[f64]) -> f64 {
-    let mut totals = [0.0; 4];
-    let chunks = x.chunks_exact(4);
-    let rest: f64 = chunks.remainder().iter().sum();
-    for chunk in chunks {
-        for (t, v) in totals.iter_mut().zip(chunk) {
-            *t += v;
-        }
-    }
-    (totals[0] + totals[2]) + (totals[1] + totals[3]) + rest
 }
 
 fn copy_rows(dst: &mut DMatrix<f64>, src: &DMatrix<f64>, rows: &[usize]) {

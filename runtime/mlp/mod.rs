@@ -16,6 +16,7 @@
 mod algorithm;
 mod error;
 mod hyperparams;
+mod linalg;
 mod tanh;
 
 use std::path::Path;
