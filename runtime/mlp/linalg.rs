@@ -81,7 +81,7 @@ mod tests {
         multiply(&mut c, (&a, Transposed::Yes), (&b, Transposed::No));
         assert!((c - a.transpose() * &b).amax() < 1e-12);
         let w = DMatrix::from_fn(4, 3, |r, c| (r as f64 - c as f64) * 0.7);
-        let mut d = DMatrix::zeros(5, 4);
+        let mut d = DMatrix::zeros(5, 3);
         multiply(
             &mut d,
             (&b, Transposed::No),
