@@ -9,7 +9,7 @@ use nalgebra::DMatrix;
 use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
 use crate::mlp::{Dataset, Mlp};
-use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot, line_plot};
+use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot};
 use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv, write_markdown};
 use crate::study::{StudyResult, slug};
 use crate::trajectory::Trajectory;
@@ -184,35 +184,43 @@ fn torque_plots(result: &StudyResult, figures: &Figures<'_>, plots: &Path) -> Re
     Ok(())
 }
 
+/// Training and validation loss in two panels, one colour per network in
+/// both (one panel of 16 curves repeated the palette's colours).
 fn training_curves(figures: &Figures<'_>, plots: &Path) -> Result<()> {
-    let mut curves = Vec::new();
+    let (mut train, mut valid) = (Vec::new(), Vec::new());
     for (name, network) in figures.networks {
         let history = network.history();
         let epochs: Vec<f64> = (1..=history.train_loss().len()).map(|e| e as f64).collect();
-        curves.push(series(
-            &format!("{name} (train)"),
+        train.push(series(
+            name,
             &epochs,
             history.train_loss().to_vec(),
             Style::Line,
         ));
         if !history.valid_loss().is_empty() {
-            curves.push(series(
-                &format!("{name} (validation)"),
+            valid.push(series(
+                name,
                 &epochs,
                 history.valid_loss().to_vec(),
                 Style::Line,
             ));
         }
     }
-    line_plot(
+    let panel = |title: &str, series: Vec<Series>| LinePlot {
+        title: title.into(),
+        x_label: "epoch".into(),
+        y_label: "loss".into(),
+        series,
+        log_y: true,
+    };
+    let mut panels = vec![panel("training", train)];
+    if !valid.is_empty() {
+        panels.push(panel("validation", valid));
+    }
+    grid_plot(
         plots.join("training_curves.svg"),
-        &LinePlot {
-            title: "Training curves (seed 0, standardized MSE)".into(),
-            x_label: "epoch".into(),
-            y_label: "loss".into(),
-            series: curves,
-            log_y: true,
-        },
+        "Training curves (seed 0, standardized MSE)",
+        &panels,
     )?;
     Ok(())
 }
