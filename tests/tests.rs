@@ -11,5 +11,6 @@ mod hidden_effects;
 mod hostile;
 mod lumping;
 mod readers_fuzz;
+mod springs;
 mod study;
 mod util;
