@@ -120,6 +120,35 @@ fn coulomb_friction_on_one_joint() {
 }
 
 #[test]
+fn direction_dependent_friction_is_told_from_an_offset() {
+    // Levels 0.4 forwards, 0.2 backwards; zero at rest (an offset is not).
+    let mut truth = oracle(NOMINAL);
+    truth.bodies[0].effects.coulomb = 0.3;
+    truth.bodies[0].effects.coulomb_asymmetry = 0.1;
+    let d = run(&truth);
+    let named: Vec<_> = d.effects.iter().map(|e| (e.kind, e.joint)).collect();
+    assert_eq!(named.len(), 2, "{named:?}");
+    let value = |kind: Kind, name: &str| {
+        let e = d
+            .effects
+            .iter()
+            .find(|e| e.kind == kind && e.joint == Some(1));
+        e.unwrap_or_else(|| panic!("{kind:?} not named: {named:?}"))
+            .parameters[name]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(
+        (value(Kind::CoulombFriction, "level") - 0.3).abs() < 0.03,
+        "{named:?}"
+    );
+    assert!(
+        (value(Kind::CoulombAsymmetry, "asymmetry") - 0.1).abs() < 0.015,
+        "{named:?}"
+    );
+}
+
+#[test]
 fn torque_offset_on_one_joint() {
     let mut truth = oracle(NOMINAL);
     truth.bodies[0].effects.offset = 0.3;

@@ -135,6 +135,9 @@ fn hide(truth: &mut Model, h: &Hidden) {
         }
         // Properties of the recording (see `distort`).
         Kind::TorqueScale | Kind::TorqueDelay => {}
+        Kind::CoulombAsymmetry => {
+            unreachable!("not in the benchmark (tested in tests/diagnose.rs)")
+        }
     }
 }
 

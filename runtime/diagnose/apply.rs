@@ -123,6 +123,7 @@ pub fn apply_to_text(
                     Kind::CoulombFriction => ("coulomb", "level"),
                     Kind::Armature => ("armature", "inertia"),
                     Kind::TorqueOffset => ("offset", "offset"),
+                    Kind::CoulombAsymmetry => ("coulomb_asymmetry", "asymmetry"),
                     _ => unreachable!("handled above"),
                 };
                 let name = joints.get(joint - 1).context("joint index out of range")?;

@@ -41,6 +41,10 @@ pub(super) enum Shape {
     /// `sample_period` (a torque held over the sample interval reads half
     /// a sample early: the logging convention, not a delay).
     Delay { sample_period: f64 },
+    /// Linear, a direction-dependent dry friction (N m): admissible only on
+    /// a joint with Coulomb friction, modelled (`modelled_coulomb`) or named
+    /// (a friction level cannot go negative in one direction).
+    Asymmetry { modelled_coulomb: f64 },
     /// theta = (m, cx, cy, cz) over a link's ten inertial columns:
     /// coefficients m * [1, c, |c|^2 E - c c^T] + `offset`, and `base` the
     /// (mass, first moment) the linear start adds its fit to.
@@ -63,7 +67,7 @@ pub(super) enum Shape {
 impl Shape {
     pub(super) fn width(&self, columns: usize) -> usize {
         match self {
-            Shape::Linear | Shape::Delay { .. } => columns,
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => columns,
             Shape::Tilt { .. } => 2,
             Shape::Body { .. } => 4,
             Shape::Moment { .. } => 3,
@@ -73,7 +77,7 @@ impl Shape {
     /// Coefficients and their Jacobian at theta.
     pub(super) fn map(&self, theta: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
         match self {
-            Shape::Linear | Shape::Delay { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
                 (theta.to_vec(), DMatrix::identity(theta.len(), theta.len()))
             }
             Shape::Tilt { gravity, .. } => {
@@ -179,11 +183,14 @@ pub(super) struct Columns {
     pub(super) tilt: Option<(Shape, [DVector<f64>; 3])>,
     /// d/dt of the measured torque.
     pub(super) measured_rate: DVector<f64>,
+    /// The model's Coulomb friction level per joint.
+    pub(super) coulomb_levels: Vec<f64>,
     /// The longest sample period of the raw recordings, s.
     pub(super) sample_period: f64,
 }
 
-/// Every candidate effect: per joint viscous and Coulomb friction,
+/// Every candidate effect: per joint viscous, Coulomb and direction-dependent
+/// (asymmetric: column 1 while moving, 0 at rest) friction,
 /// armature, a torque offset, a spring (columns q and 1: stiffness k and
 /// -k * rest) and a torque scale (the logged torque a scaled copy s tau of
 /// the applied one: the residual holds (s - 1) of the torque, column the
@@ -202,6 +209,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         mut inertial,
         tilt,
         measured_rate,
+        coulomb_levels,
         sample_period,
     } = columns;
     let model_torque = &data.measured - &data.residual;
@@ -226,6 +234,13 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         list.push(Candidate {
             applied: Some(own(j, &|r| coulomb_applied[r])),
             ..one(Kind::CoulombFriction, "level", &|r| sign[r])
+        });
+        list.push(Candidate {
+            applied: Some(own(j, &|r| coulomb_applied[r] * coulomb_applied[r])),
+            shape: Shape::Asymmetry {
+                modelled_coulomb: coulomb_levels.get(j).copied().unwrap_or(0.0),
+            },
+            ..one(Kind::CoulombAsymmetry, "asymmetry", &|r| sign[r] * sign[r])
         });
         list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
         list.push(one(Kind::TorqueOffset, "offset", &|r| ones[r]));

@@ -294,6 +294,7 @@ pub(super) fn stack(
         inertial: all.inertial.into_iter().map(DVector::from_vec).collect(),
         tilt: tilted.map(|(shape, _)| (shape, all.tilt.map(DVector::from_vec))),
         measured_rate: DVector::from_vec(all.measured_rate),
+        coulomb_levels: coulomb_levels(model),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
     };
     let candidates = candidates(&data, columns, &links(model));
@@ -372,6 +373,19 @@ fn rows(
         }
     }
     Ok(rows)
+}
+
+/// The model's Coulomb friction level of each joint (its regressor
+/// parameter `coulomb{j}`).
+fn coulomb_levels(model: &dyn Dynamics) -> Vec<f64> {
+    let n = model.dof();
+    let parameters = model.parameters();
+    (0..n)
+        .map(|j| {
+            let at = 10 * n + codegen::EFFECTS_PER_JOINT * j + 2;
+            parameters.get(at).copied().unwrap_or(0.0)
+        })
+        .collect()
 }
 
 /// A tilted base's candidate shape and the model with unit gravity along

@@ -191,7 +191,7 @@ pub(super) fn fit(
     let mut at = 0;
     for &c in selected {
         match candidates[c].shape {
-            Shape::Linear | Shape::Delay { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
                 start_columns.extend(at..at + candidates[c].columns.len())
             }
             // A small tilt barely changes the gravity along the model's.
@@ -213,7 +213,7 @@ pub(super) fn fit(
                 theta.extend(x0.rows(at, 2).iter());
                 at += 2;
             }
-            Shape::Linear | Shape::Delay { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
                 let count = candidates[c].columns.len();
                 theta.extend(x0.rows(at, count).iter());
                 at += count;
@@ -293,9 +293,12 @@ pub(super) fn descend(
     let objective = |coefficients: &DVector<f64>| {
         coefficients.dot(&(a * coefficients)) - 2.0 * coefficients.dot(b)
     };
-    let nonlinear = selected
-        .iter()
-        .any(|&c| !matches!(candidates[c].shape, Shape::Linear | Shape::Delay { .. }));
+    let nonlinear = selected.iter().any(|&c| {
+        !matches!(
+            candidates[c].shape,
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. }
+        )
+    });
     let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
     let mut value = objective(&coef);
     let mut lambda = 1e-3;

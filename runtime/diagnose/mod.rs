@@ -129,6 +129,9 @@ pub enum Kind {
     /// A joint spring (a gravity-balancing spring, a cable): `stiffness`
     /// N m/rad about the `rest` angle, rad.
     JointSpring,
+    /// Direction-dependent dry friction: `asymmetry` N m added while the
+    /// joint moves either way (levels coulomb +- asymmetry).
+    CoulombAsymmetry,
 }
 
 impl Kind {

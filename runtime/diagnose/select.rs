@@ -102,7 +102,10 @@ pub(super) fn select(
     loop {
         let best = (0..candidates.len())
             .filter(|c| {
-                !selected.contains(c) && !refused.contains(c) && !unidentifiable.contains(c)
+                !selected.contains(c)
+                    && !refused.contains(c)
+                    && !unidentifiable.contains(c)
+                    && admissible(candidates, *c, &selected)
             })
             .map(|c| {
                 let mut trial = selected.clone();
@@ -238,6 +241,19 @@ pub(super) fn prune(
 /// way) is not taken as an inertial error of that link.
 pub const MASS_FACTOR: f64 = 3.0;
 
+/// Whether a candidate may compete given the effects already named: an
+/// asymmetry of dry friction only on a joint that has Coulomb friction.
+fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
+    let candidate = &candidates[c];
+    let Shape::Asymmetry { modelled_coulomb } = candidate.shape else {
+        return true;
+    };
+    modelled_coulomb > 0.0
+        || selected.iter().any(|&s| {
+            candidates[s].kind == Kind::CoulombFriction && candidates[s].joint == candidate.joint
+        })
+}
+
 /// How a candidate is named in notes.
 pub(super) fn label(candidate: &Candidate) -> String {
     let kind = candidate.kind.name();
@@ -266,7 +282,7 @@ pub(super) fn physical(
     let percent = 100.0 * gain;
     let value = values[0];
     let meaning = match candidate.kind {
-        Kind::TorqueOffset => return Ok(()),
+        Kind::TorqueOffset | Kind::CoulombAsymmetry => return Ok(()),
         Kind::TorqueScale | Kind::TorqueDelay | Kind::GravityDirection => {
             return plausible_data_effect(candidate, values, &at, percent);
         }

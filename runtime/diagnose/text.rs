@@ -162,7 +162,7 @@ fn interval_text(v: &serde_json::Value) -> String {
 fn unit(kind: Kind, name: &str) -> &'static str {
     match (kind, name) {
         (Kind::ViscousFriction, _) => " N m s/rad",
-        (Kind::CoulombFriction | Kind::TorqueOffset, _) => " N m",
+        (Kind::CoulombFriction | Kind::TorqueOffset | Kind::CoulombAsymmetry, _) => " N m",
         (Kind::Armature, _) => " kg m^2",
         (Kind::TorqueScale | Kind::TorqueDelay, "correction") => "",
         (Kind::TorqueScale, _) => "",
