@@ -213,7 +213,10 @@ pub(super) fn prune(
 ) -> Vec<usize> {
     let mut dropped_all = Vec::new();
     loop {
-        let failing = selected.iter().position(|&c| {
+        // The last named failing effect goes first: it removed the least
+        // error when named, and dropping it may restore the others'
+        // significance (an early strong effect must not go for a late one).
+        let failing = selected.iter().rposition(|&c| {
             let mut trial: Vec<usize> = selected.iter().copied().filter(|&s| s != c).collect();
             trial.push(c);
             let Some(full) = fit(m, candidates, &trial, |_| true) else {
