@@ -13,6 +13,9 @@ pub(super) struct Candidate {
     pub(super) joint: Option<usize>,
     /// 0-based moving link and its name, for inertial candidates.
     pub(super) link: Option<(usize, String)>,
+    /// The link's modelled standard parameters (inertial candidates; zero
+    /// otherwise): the corrected body is these plus the fitted change.
+    pub(super) modelled: [f64; 10],
     pub(super) names: Vec<&'static str>,
     pub(super) columns: Vec<DVector<f64>>,
     /// What the generated model computes for this effect once applied, when
@@ -149,6 +152,42 @@ pub(super) fn point_mass(m: f64, c: &Vector3<f64>) -> [f64; 10] {
     ]
 }
 
+/// Whether standard parameters (m, m*c, inertia about the origin in the
+/// order of [`point_mass`]) are those of a physical body: the pseudo-inertia
+/// [[tr(I)/2 E - I, h], [h^T, m]] is positive semi-definite (Wensing, Kim
+/// and Slotine 2017: positive mass, and the triangle inequality of the
+/// principal moments about the centre of mass). `None` when its
+/// eigenvalues cannot be computed.
+pub(super) fn physically_consistent(p: &[f64; 10]) -> Option<bool> {
+    let [m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] = *p;
+    let half_trace = 0.5 * (ixx + iyy + izz);
+    let pseudo = DMatrix::from_row_slice(
+        4,
+        4,
+        &[
+            half_trace - ixx,
+            -ixy,
+            -ixz,
+            hx,
+            -ixy,
+            half_trace - iyy,
+            -iyz,
+            hy,
+            -ixz,
+            -iyz,
+            half_trace - izz,
+            hz,
+            hx,
+            hy,
+            hz,
+            m,
+        ],
+    );
+    let scale = pseudo.iter().fold(0.0_f64, |s, x| s.max(x.abs()));
+    let eigenvalues = crate::kernels::symmetric_eigenvalues(pseudo)?;
+    Some(eigenvalues.min() >= -1e-12 * scale)
+}
+
 /// Global column indices of the selected candidates.
 pub(super) fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<usize> {
     let offsets: Vec<usize> = candidates
@@ -225,6 +264,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             kind,
             joint: Some(j),
             link: None,
+            modelled: [0.0; 10],
             names: vec![name],
             columns: vec![own(j, f)],
             applied: None,
@@ -255,6 +295,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         kind,
         joint: None,
         link: None,
+        modelled: [0.0; 10],
         names,
         columns,
         applied: None,
@@ -314,9 +355,47 @@ fn link_candidate(k: usize, n: usize, link: &Link, columns: Vec<DVector<f64>>) -
         },
         joint: None,
         link: Some((k, link.name.clone())),
+        modelled: link.parameters,
         names: vec!["mass", "cx", "cy", "cz"],
         columns,
         applied: None,
         shape,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A solid box's standard parameters about its centre, offset to `c`.
+    fn box_at(m: f64, sides: [f64; 3], c: [f64; 3]) -> [f64; 10] {
+        let [a, b, h] = sides.map(|s| s * s);
+        let mut p = point_mass(m, &Vector3::from(c));
+        p[4] += m * (b + h) / 12.0;
+        p[6] += m * (a + h) / 12.0;
+        p[9] += m * (a + b) / 12.0;
+        p
+    }
+
+    #[test]
+    fn bodies_are_consistent_and_impossible_ones_are_not() {
+        assert_eq!(
+            physically_consistent(&box_at(2.0, [0.1, 0.2, 0.3], [0.1, 0.0, 0.2])),
+            Some(true)
+        );
+        assert_eq!(
+            physically_consistent(&point_mass(0.5, &Vector3::new(0.0, 0.1, 0.3))),
+            Some(true)
+        );
+        // Negative mass.
+        assert_eq!(
+            physically_consistent(&box_at(-1.0, [0.1, 0.1, 0.1], [0.0; 3])),
+            Some(false)
+        );
+        // Principal moments 1, 1, 3 about the COM break the triangle inequality.
+        let mut p = point_mass(1.0, &Vector3::zeros());
+        (p[4], p[6], p[9]) = (1.0, 1.0, 3.0);
+        assert_eq!(physically_consistent(&p), Some(false));
+        assert_eq!(physically_consistent(&[f64::NAN; 10]), None);
     }
 }

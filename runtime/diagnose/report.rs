@@ -3,7 +3,7 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::candidate::{Candidate, Shape, width};
+use super::candidate::{Candidate, Shape, physically_consistent, width};
 use super::data::Stacked;
 use super::fit::{Moments, cv_mse_per_joint, fit, fit_robust};
 use super::select::label;
@@ -217,6 +217,9 @@ pub(super) fn effect(
         }
         data_correction(candidate, values, &mut parameters, &mut ci95);
     }
+    if matches!(candidate.shape, Shape::Body { .. } | Shape::Moment { .. }) {
+        consistency(candidate, values, &mut parameters, notes);
+    }
     Effect {
         kind: candidate.kind,
         joint: candidate.joint.map(|j| j + 1),
@@ -225,6 +228,32 @@ pub(super) fn effect(
         ci95,
         heldout_mse_removed: 0.0,
         heldout_share: 0.0,
+    }
+}
+
+/// Whether the corrected link (its model plus the fitted change) is a
+/// physical body; reported as `physically_consistent`, with a note if not.
+fn consistency(
+    candidate: &Candidate,
+    values: &[(f64, f64)],
+    parameters: &mut serde_json::Map<String, serde_json::Value>,
+    notes: &mut Vec<String>,
+) {
+    let theta: Vec<f64> = values.iter().map(|v| v.0).collect();
+    let (coefficients, _) = candidate.shape.map(&theta);
+    let corrected: [f64; 10] = std::array::from_fn(|k| candidate.modelled[k] + coefficients[k]);
+    let consistent = physically_consistent(&corrected);
+    parameters.insert(
+        "physically_consistent".into(),
+        serde_json::json!(consistent),
+    );
+    if consistent == Some(false) {
+        notes.push(format!(
+            "{}: the corrected body is not physically realizable (its pseudo-inertia is not \
+             positive semi-definite: the modelled inertia about the COM breaks the triangle \
+             inequality, or the fitted mass is not positive); correct the model's inertia first",
+            label(candidate)
+        ));
     }
 }
 

@@ -501,6 +501,7 @@ mod tests {
             kind,
             joint,
             link: None,
+            modelled: [0.0; 10],
             names: vec![],
             columns: vec![],
             applied: None,
