@@ -81,26 +81,65 @@ pub struct ReproduceArgs {
     /// Seconds per trajectory (above 0, at most 3600).
     #[arg(long, default_value_t = 20.0, value_parser = ranges::real(0.0, 3600.0, true, "record several trajectories"))]
     pub duration: f64,
-    /// Plant (truth) and nominal (analytical) compiled models.
-    #[arg(long, default_value = DEFAULT_PLANT)]
-    pub plant: String,
-    #[arg(long, default_value = DEFAULT_NOMINAL)]
-    pub nominal: String,
+    /// Which situation: `virtual` (the plant is the analytical model plus
+    /// friction and armature) or `thesis` (the plant is Kinova's own
+    /// description of the arm plus friction and armature, tracked by a
+    /// controller that knows it, within its 0.35 rad/s limit; the analytical
+    /// model is the thesis's, with its conventions).
+    #[arg(long, value_enum, default_value_t)]
+    pub situation: Situation,
+    /// Plant (truth) and nominal (analytical) models [default: the
+    /// situation's].
+    #[arg(long)]
+    pub plant: Option<String>,
+    #[arg(long)]
+    pub nominal: Option<String>,
+    /// Factor on the virtual robot's sensor noise (standard deviations
+    /// torque 0.05 N m, velocity 0.02 rad/s, angle 1e-5 rad), 0-10.
+    #[arg(long, default_value_t = 1.0, value_parser = ranges::real(0.0, 10.0, false, "noise beyond 10x the sensor's is not a measurement"))]
+    pub noise_scale: f64,
     #[command(flatten)]
     pub run: StudyRunArgs,
 }
 
+/// The study's situation (see `ReproduceArgs::situation`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Situation {
+    #[default]
+    Virtual,
+    Thesis,
+}
+
+/// The thesis situation's plant and controller model.
+const THESIS_PLANT: &str = "kinova_gen3_lite_urdf_plant";
+const THESIS_CONTROLLER: &str = "kinova_gen3_lite_3dof_locked";
+
 pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
-    let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    let default_plant = match args.situation {
+        Situation::Virtual => DEFAULT_PLANT,
+        Situation::Thesis => THESIS_PLANT,
+    };
+    let plant = find_model(args.plant.as_deref().unwrap_or(default_plant))?;
+    let nominal = find_model(args.nominal.as_deref().unwrap_or(DEFAULT_NOMINAL))?;
+    let controller = match args.situation {
+        Situation::Virtual => nominal,
+        Situation::Thesis => find_model(THESIS_CONTROLLER)?,
+    };
     let config = StudyConfig {
         trajectories: args.trajectories,
         train: args.train,
         duration: args.duration,
+        noise_scale: args.noise_scale,
         ..args.run.config()?
+    };
+    let models = study::Models {
+        plant,
+        controller,
+        nominal,
     };
     let out = &args.run.out;
     run_study(out, args.run.format, |progress| {
-        study::run(plant, nominal, &config, out, progress)
+        study::run_models(models, &config, out, progress)
     })
 }
 
@@ -197,7 +236,21 @@ pub struct SimulateArgs {
     pub nominal: String,
 }
 
+/// Most recorded seconds one `simulate` run writes (10 h, about 2 GB of
+/// CSV at 1 kHz for 3 joints): beyond it, run it several times.
+const MOST_SIMULATED_SECONDS: f64 = 36_000.0;
+
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
+    let total = args.count as f64 * args.duration;
+    if total > MOST_SIMULATED_SECONDS {
+        bail!(
+            "--count {} x --duration {} s is {total} s of recordings, more than one run writes \
+             ({MOST_SIMULATED_SECONDS} s, about 2 GB at 1 kHz for 3 joints): run it several \
+             times with other --seed values",
+            args.count,
+            args.duration
+        );
+    }
     let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
     crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -433,10 +486,17 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     };
     let (p, m) = (stacked(|c| &c.predicted), stacked(|c| &c.measured));
     let mse = mse_per_joint(&p, &m);
-    let mse_as_logged = mse_per_joint(
-        &stacked(|c| &c.predicted_unfiltered),
-        &stacked(|c| &c.measured_as_logged),
-    );
+    // Each recording weighs as in `mse` (by its kept samples, i.e. by its
+    // duration), whatever rate it was logged at.
+    let weights: Vec<f64> = compared.iter().map(|c| c.measured.nrows() as f64).collect();
+    let total: f64 = weights.iter().sum::<f64>().max(1.0);
+    let mut mse_as_logged = vec![0.0; model.dof()];
+    for (c, w) in compared.iter().zip(&weights) {
+        let each = mse_per_joint(&c.predicted_unfiltered, &c.measured_as_logged);
+        for (sum, v) in mse_as_logged.iter_mut().zip(each) {
+            *sum += v * w / total;
+        }
+    }
     let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
     let name = args
         .nn
@@ -524,6 +584,11 @@ pub struct DiagnoseArgs {
     /// 2-30 s each].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub segments: Option<u32>,
+    /// Let Stribeck friction compete too (off by default: from recordings
+    /// its signature, confined to velocity reversals, is confounded with the
+    /// stick-slip of plain dry friction; see docs/diagnosis.md).
+    #[arg(long)]
+    pub stribeck: bool,
     /// Write the named effects into the model's TOML (a `.bak` copy is kept).
     #[arg(long)]
     pub apply: bool,
@@ -547,6 +612,7 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
         crate::diagnose::Settings {
             reach: crate::diagnose::reach(model),
             segments: args.segments.map(|s| s as usize),
+            stribeck: args.stribeck,
             ..crate::diagnose::Settings::default()
         },
     )?;
@@ -649,8 +715,20 @@ fn file_name(path: &Path) -> Result<&std::ffi::OsStr> {
         .with_context(|| format!("{}: not a file name", path.display()))
 }
 
-/// Runs `f` on every file; a bad file is reported and the rest still run.
+/// Runs `f` on every file, whose output is the file's name in the output
+/// folder; a bad file is reported and the rest still run.
 fn for_each_file(files: &[PathBuf], f: impl Fn(&Path) -> Result<()>) -> Result<()> {
+    for (k, path) in files.iter().enumerate() {
+        let name = file_name(path)?;
+        if let Some(other) = files[..k].iter().find(|p| p.file_name() == Some(name)) {
+            bail!(
+                "{} and {} have the same file name: their outputs would overwrite each other in \
+                 the output folder (rename one, or run them separately)",
+                other.display(),
+                path.display()
+            );
+        }
+    }
     let mut failed = 0;
     for path in files {
         if let Err(e) = f(path) {

@@ -93,7 +93,10 @@ pub fn parse_scale(text: &str) -> Result<(usize, f64), String> {
 /// time grid); the samples the shift leaves without a torque are dropped.
 pub fn correct(traj: &Trajectory, scales: &[(usize, f64)], delay: f64) -> Result<Trajectory> {
     let mut tau = traj.tau().clone();
-    for &(joint, scale) in scales {
+    for (k, &(joint, scale)) in scales.iter().enumerate() {
+        if scales[..k].iter().any(|&(j, _)| j == joint) {
+            bail!("--torque-scale is given twice for joint {joint}: give each joint's scale once");
+        }
         if joint > traj.dof() {
             bail!(
                 "--torque-scale {joint}={scale}: the recording has {} joints",

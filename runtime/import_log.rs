@@ -156,7 +156,7 @@ pub fn write_contract_csv(w: impl Write, c: &Columns) -> Result<(), ImportLogErr
 /// One finite number per line; a final line terminator is optional.
 fn read_values(path: &Path) -> Result<Vec<f64>, ImportLogError> {
     crate::output::note_input(path);
-    let bytes = std::fs::read(path).map_err(|source| ImportLogError::Io {
+    let bytes = crate::bounded::read(path).map_err(|source| ImportLogError::Io {
         path: path.to_path_buf(),
         source,
     })?;

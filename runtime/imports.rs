@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::import_log::{LineMajorSources, read_line_major, write_contract_csv};
+use crate::import_log::{Columns, LineMajorSources, read_line_major, write_contract_csv};
 use crate::import_urdf::{Attachment, ImportOptions, import_urdf, parse_lock};
 use crate::report::atomic::write_atomic;
 
@@ -38,7 +38,7 @@ pub struct ImportUrdfArgs {
 
 pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
     crate::output::note_input(&args.urdf);
-    let text = std::fs::read_to_string(&args.urdf)
+    let text = crate::bounded::read_to_string(&args.urdf)
         .with_context(|| format!("reading {}", args.urdf.display()))?;
     let options = ImportOptions {
         base: args.base.clone(),
@@ -53,6 +53,12 @@ pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
     for warning in &imported.warnings {
         eprintln!("warning: {label}: {warning}");
     }
+    // What this tool writes it must also read: a value the description
+    // refuses (a mass beyond any arm, an impossible inertia) fails here.
+    let written = args.out.clone().unwrap_or_else(|| PathBuf::from("-"));
+    codegen::Description::parse(&imported.toml, "imported", &written).map_err(|e| {
+        anyhow::anyhow!("{label}: the URDF imports to a description this tool refuses: {e}")
+    })?;
     emit(args.out.as_ref(), imported.toml.as_bytes())?;
     if let Some(out) = &args.out {
         eprintln!(
@@ -93,6 +99,7 @@ pub fn import_log_command(args: &ImportLogArgs) -> Result<()> {
         torques: args.torques.clone(),
         dof: args.dof,
     })?;
+    plausible_log(&columns)?;
     let mut csv = Vec::new();
     write_contract_csv(&mut csv, &columns)?;
     emit(args.out.as_ref(), &csv)?;
@@ -103,6 +110,40 @@ pub fn import_log_command(args: &ImportLogArgs) -> Result<()> {
             out.display(),
             columns.t.len()
         );
+    }
+    Ok(())
+}
+
+/// The readers' bounds on what a recording may hold, checked before the
+/// CSV is written (it would be refused when read).
+fn plausible_log(columns: &Columns) -> Result<()> {
+    use crate::trajectory::{PLAUSIBLE_ANGLE, PLAUSIBLE_TIME, PLAUSIBLE_TORQUE};
+    let channels = [
+        ("positions (rad)", &columns.q, PLAUSIBLE_ANGLE),
+        ("velocities (rad/s)", &columns.qd, PLAUSIBLE_ANGLE),
+        ("torques (N m)", &columns.tau, PLAUSIBLE_TORQUE),
+    ];
+    for (k, &t) in columns.t.iter().enumerate() {
+        if t.is_nan() || t.abs() > PLAUSIBLE_TIME {
+            anyhow::bail!(
+                "sample {}: time {t:e} s is beyond any log (|t| <= {PLAUSIBLE_TIME:e} s)",
+                k + 1
+            );
+        }
+        for (what, rows, limit) in &channels {
+            if let Some((j, v)) = rows[k]
+                .iter()
+                .enumerate()
+                .find(|(_, v)| v.is_nan() || v.abs() > *limit)
+            {
+                anyhow::bail!(
+                    "sample {}, joint {}: {what} {v:e} is beyond any arm (|value| <= {limit:e}); a \
+                     logging fault?",
+                    k + 1,
+                    j + 1
+                );
+            }
+        }
     }
     Ok(())
 }

@@ -28,10 +28,16 @@ pub fn svd(m: DMatrix<f64>) -> Option<SVD<f64, nalgebra::Dyn, nalgebra::Dyn>> {
 /// read), or `None` when `m` holds a non-finite entry or the iterations do
 /// not converge.
 pub fn symmetric_eigenvalues(m: DMatrix<f64>) -> Option<DVector<f64>> {
+    symmetric_eigen(m).map(|e| e.eigenvalues)
+}
+
+/// The eigen-decomposition of the symmetric matrix `m` (its lower triangle
+/// is read), with the same guarantees.
+pub fn symmetric_eigen(m: DMatrix<f64>) -> Option<SymmetricEigen<f64, nalgebra::Dyn>> {
     if !finite(&m) || !m.is_square() {
         return None;
     }
-    SymmetricEigen::try_new(m, f64::EPSILON, MAX_ITERATIONS).map(|e| e.eigenvalues)
+    SymmetricEigen::try_new(m, f64::EPSILON, MAX_ITERATIONS)
 }
 
 #[cfg(test)]

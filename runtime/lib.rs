@@ -6,6 +6,7 @@
 //! built from the same descriptions, used to verify them.
 
 pub mod args;
+pub mod bounded;
 pub mod cli;
 pub mod commands;
 pub mod corrections;
@@ -13,6 +14,7 @@ pub mod described;
 pub mod diagnose;
 pub mod dynamics;
 pub mod errors;
+pub mod identified;
 pub mod import_log;
 pub mod import_urdf;
 pub mod imports;

@@ -14,8 +14,9 @@ use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, Vector3};
 /// Number of standard inertial parameters per body.
 pub const INERTIAL_PARAMETERS: usize = 10;
 /// Number of joint-effect parameters per joint: armature, viscous, coulomb,
-/// offset, coulomb_asymmetry, spring (`JointEffects::parameters`).
-pub const EFFECT_PARAMETERS: usize = 6;
+/// offset, coulomb_asymmetry, spring, stribeck, ripple_sin, ripple_cos
+/// (`JointEffects::parameters`).
+pub const EFFECT_PARAMETERS: usize = codegen::EFFECTS_PER_JOINT;
 
 /// A serial chain ready for numeric dynamics.
 #[derive(Debug, Clone)]
@@ -75,7 +76,7 @@ impl Model {
         DVector::from_iterator(self.parameter_count(), inertial.chain(effects))
     }
 
-    /// 16 per degree of freedom.
+    /// 19 per degree of freedom.
     pub fn parameter_count(&self) -> usize {
         self.dof() * (INERTIAL_PARAMETERS + EFFECT_PARAMETERS)
     }
@@ -98,24 +99,38 @@ pub fn rnea(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DVector<f64> {
         model.bodies.iter().map(|b| b.parameters).collect();
     let mut tau = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
     for (i, body) in model.bodies.iter().enumerate() {
-        tau[i] += effects_torque(&body.effects, qd[i], qdd[i]) + spring_torque(&body.effects, q[i]);
+        tau[i] +=
+            effects_torque(&body.effects, qd[i], qdd[i]) + position_torque(&body.effects, q[i]);
     }
     tau
 }
 
-/// Joint-effect torque of one joint, its spring aside (see [`spring_torque`]).
+/// Joint-effect torque of one joint, its torque of the position aside (see
+/// [`position_torque`]).
 pub fn effects_torque(e: &JointEffects, qd: f64, qdd: f64) -> f64 {
     let sign = coulomb_sign(qd);
     e.armature * qdd
         + e.viscous * qd
         + e.coulomb * sign
         + e.coulomb_asymmetry * sign * sign
+        + e.stribeck * stribeck_shape(e, qd)
         + e.offset
 }
 
-/// A joint spring's torque: a potential force, part of [`gravity`].
-pub fn spring_torque(e: &JointEffects, q: f64) -> f64 {
-    e.spring * (q - e.spring_rest)
+/// sign(qd) exp(-(qd/v_s)^2), 0 without a Stribeck velocity.
+fn stribeck_shape(e: &JointEffects, qd: f64) -> f64 {
+    if e.stribeck_velocity > 0.0 {
+        coulomb_sign(qd) * (-(qd / e.stribeck_velocity).powi(2)).exp()
+    } else {
+        0.0
+    }
+}
+
+/// A joint's torque of its position alone (spring and ripple), part of
+/// [`gravity`].
+pub fn position_torque(e: &JointEffects, q: f64) -> f64 {
+    let angle = e.ripple_cycles * q;
+    e.spring * (q - e.spring_rest) + e.ripple_sin * angle.sin() + e.ripple_cos * angle.cos()
 }
 
 /// Joint-space inertia matrix M(q), armature included, column by column
@@ -135,14 +150,14 @@ pub fn crba(model: &Model, q: &[f64]) -> DMatrix<f64> {
     m
 }
 
-/// Potential torque g(q): the rigid-body torque at rest plus the joint
-/// springs, without the other effects.
+/// Torque of the position g(q): the rigid-body torque at rest plus the
+/// joint springs and ripples, without the other effects.
 pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
     let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
     let zero = vec![0.0; model.dof()];
     let mut g = rigid_body_torque(model, &params, model.gravity, q, &zero, &zero);
     for (i, body) in model.bodies.iter().enumerate() {
-        g[i] += spring_torque(&body.effects, q[i]);
+        g[i] += position_torque(&body.effects, q[i]);
     }
     g
 }
@@ -155,7 +170,7 @@ pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
 }
 
 /// Regressor Y(q, qd, qdd) with Y * model.parameters() == rnea(q, qd, qdd)
-/// (dim dof x 16*dof): RNEA with one unit parameter at a time.
+/// (dim dof x 19*dof): RNEA with one unit parameter at a time.
 pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f64> {
     let n = model.dof();
     let mut y = DMatrix::zeros(n, model.parameter_count());
@@ -173,7 +188,12 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f
         y[(b, base + 2)] = sign;
         y[(b, base + 3)] = 1.0;
         y[(b, base + 4)] = sign * sign;
-        y[(b, base + 5)] = q[b] - model.bodies[b].effects.spring_rest;
+        let e = &model.bodies[b].effects;
+        y[(b, base + 5)] = q[b] - e.spring_rest;
+        y[(b, base + 6)] = stribeck_shape(e, qd[b]);
+        let angle = e.ripple_cycles * q[b];
+        y[(b, base + 7)] = angle.sin();
+        y[(b, base + 8)] = angle.cos();
     }
     y
 }

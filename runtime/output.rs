@@ -82,7 +82,19 @@ pub fn write_with(
              (choose another output path)",
         ));
     }
+    if is_special(&target) {
+        // A device or a FIFO (/dev/null, a pipe to another program) is
+        // written into, never replaced by a regular file.
+        let mut w = BufWriter::new(fs::OpenOptions::new().write(true).open(&target)?);
+        body(&mut w)?;
+        return w.flush();
+    }
     replace(&target, body)
+}
+
+/// Whether `path` exists and is neither a regular file nor a directory.
+fn is_special(path: &Path) -> bool {
+    fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
 /// Replaces an input file on purpose (an edit of the file read), with the
@@ -133,6 +145,12 @@ fn replace(target: &Path, body: impl FnOnce(&mut dyn Write) -> io::Result<()>) -
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::NotFound,
+            format!("the folder {} does not exist", dir.display()),
+        ));
+    }
     let mut temporary = tempfile::Builder::new()
         .prefix(".sdnn-")
         .suffix(".tmp")
@@ -143,9 +161,13 @@ fn replace(target: &Path, body: impl FnOnce(&mut dyn Write) -> io::Result<()>) -
         w.flush()?;
     }
     temporary.as_file().sync_all()?;
-    if let Some(meta) = existing {
-        fs::set_permissions(temporary.path(), meta.permissions())?;
-    }
+    // A new file is readable by all like any file a tool writes (the
+    // temporary file is private until it is complete).
+    let permissions = existing.map_or_else(
+        || std::os::unix::fs::PermissionsExt::from_mode(0o644),
+        |meta| meta.permissions(),
+    );
+    fs::set_permissions(temporary.path(), permissions)?;
     temporary.persist(target).map_err(|e| e.error)?;
     Ok(())
 }
@@ -153,6 +175,7 @@ fn replace(target: &Path, body: impl FnOnce(&mut dyn Write) -> io::Result<()>) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::os::unix::fs::FileTypeExt;
 
     #[test]
     fn writes_and_replaces_without_leftovers() {
@@ -188,6 +211,31 @@ mod tests {
         let error = write(&real, b"c").unwrap_err();
         assert!(error.to_string().contains("read-only"), "{error}");
         assert_eq!(fs::read_to_string(&real).unwrap(), "b");
+    }
+
+    #[test]
+    fn devices_and_fifos_are_written_into_not_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let status = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || fs::read_to_string(fifo).unwrap())
+        };
+        write(&fifo, b"through the pipe").unwrap();
+        assert_eq!(reader.join().unwrap(), "through the pipe");
+        assert!(fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        write(Path::new("/dev/null"), b"nothing").unwrap();
+        assert!(
+            fs::metadata("/dev/null")
+                .unwrap()
+                .file_type()
+                .is_char_device()
+        );
     }
 
     #[test]

@@ -14,6 +14,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use crate::dynamics::{Dynamics, model_torques, parsed_description};
+use crate::identified::Identified;
 use crate::mlp::{Dataset, Mlp};
 use crate::preprocess::Preprocess;
 use crate::seeds::{self, Purpose};
@@ -49,9 +50,13 @@ pub struct StudyConfig {
     pub theoretical_trajectories: usize,
     /// Open-loop evaluation window on the first test trajectory, s.
     pub open_loop_seconds: f64,
-    /// Joint velocity and acceleration caps of the random waypoint trajectories.
+    /// Joint velocity and acceleration caps of the random waypoint
+    /// trajectories (the description's velocity limits cap them too).
     pub max_velocity: f64,
     pub max_acceleration: f64,
+    /// Factor on the virtual robot's sensor noise (torque 0.05 N m,
+    /// velocity 0.02 rad/s, angle 1e-5 rad standard deviations).
+    pub noise_scale: f64,
 }
 
 impl Default for StudyConfig {
@@ -73,6 +78,7 @@ impl Default for StudyConfig {
             open_loop_seconds: 1.0,
             max_velocity: 1.0,
             max_acceleration: 2.0,
+            noise_scale: 1.0,
         }
     }
 }
@@ -117,9 +123,13 @@ pub struct StudyResult {
 enum Recipe {
     Measured,
     Analytical,
-    Synthesized { ratio: f64 },
+    Synthesized {
+        ratio: f64,
+    },
     Theoretical,
     Residual,
+    /// The residual of the model identified on the training recordings.
+    IdentifiedResidual,
 }
 
 struct Job {
@@ -139,7 +149,20 @@ struct Data {
     test: Vec<usize>,
 }
 
-/// Runs the study and writes its results below `out`.
+/// The models of a study on the virtual robot.
+#[derive(Clone, Copy)]
+pub struct Models<'a> {
+    /// The truth the recordings come from.
+    pub plant: &'a dyn Dynamics,
+    /// The model the arm's computed-torque controller tracks with (its
+    /// velocity limits cap the motions).
+    pub controller: &'a dyn Dynamics,
+    /// The analytical model under test.
+    pub nominal: &'a dyn Dynamics,
+}
+
+/// Runs the study with the nominal model as the controller's (the default
+/// situation) and writes its results below `out`.
 pub fn run(
     plant: &dyn Dynamics,
     nominal: &dyn Dynamics,
@@ -147,11 +170,28 @@ pub fn run(
     out: &Path,
     progress: Progress<'_>,
 ) -> Result<StudyResult> {
+    let models = Models {
+        plant,
+        controller: nominal,
+        nominal,
+    };
+    run_models(models, config, out, progress)
+}
+
+/// Runs the study on `models` and writes its results below `out`.
+pub fn run_models(
+    models: Models<'_>,
+    config: &StudyConfig,
+    out: &Path,
+    progress: Progress<'_>,
+) -> Result<StudyResult> {
+    let Models { plant, nominal, .. } = models;
     check(config, plant, nominal)?;
+    check(config, models.controller, nominal)?;
     crate::output::create_folder(out)
         .and_then(|()| std::fs::create_dir_all(out.join("data")))
         .with_context(|| format!("creating {}", out.display()))?;
-    let data = record(plant, nominal, config, out, progress)?;
+    let data = record(plant, models.controller, config, out, progress)?;
     let filter_comparison = compare_filters(nominal, &data, config)?;
     analyse(
         Some(plant),
@@ -248,9 +288,12 @@ fn analyse(
     progress: Progress<'_>,
 ) -> Result<StudyResult> {
     let analytical = analytical_result(nominal, &data)?;
+    let training: Vec<&Trajectory> = data.train.iter().map(|&k| &data.processed[k]).collect();
+    let identified = Identified::fit(nominal, &training)?;
+    let identified_result = identified_result(&identified, &data)?;
     let jobs = jobs(config);
-    let networks = train_all(nominal, &data, config, &jobs, out, progress)?;
-    let mut models = vec![analytical];
+    let networks = train_all(nominal, &identified, &data, config, &jobs, out, progress)?;
+    let mut models = vec![analytical, identified_result];
     for (job, seeds) in jobs.iter().zip(&networks) {
         models.push(summarize(
             &job.name,
@@ -258,7 +301,15 @@ fn analyse(
         ));
     }
     if let Some(plant) = plant {
-        open_loop_evaluation(plant, nominal, &data, config, &jobs, &networks, &mut models)?;
+        open_loop_evaluation(
+            plant,
+            nominal,
+            &identified,
+            &data,
+            config,
+            (&jobs, &networks),
+            &mut models,
+        )?;
     }
     let result = StudyResult {
         plant: plant.map_or("measured data".to_string(), |p| p.name().to_string()),
@@ -309,42 +360,47 @@ fn check(config: &StudyConfig, plant: &dyn Dynamics, nominal: &dyn Dynamics) -> 
 }
 
 /// Joint limits of the random trajectories: the description's position
-/// limits (+-pi for a joint without limits) and the study's velocity and
-/// acceleration caps.
-pub fn limits(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
-    let description = parsed_description(nominal)?;
-    let position = description
-        .chain()
-        .bodies
+/// limits (+-pi for a joint without limits), its velocity limits capped at
+/// the study's velocity cap, and the study's acceleration cap.
+pub fn limits(model: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
+    let description = parsed_description(model)?;
+    let bodies = &description.chain().bodies;
+    let position = bodies
         .iter()
         .map(|b| b.limits.map_or((-PI, PI), |l| (l.lower, l.upper)))
         .collect();
-    let n = nominal.dof();
+    let velocity = bodies
+        .iter()
+        .map(|b| {
+            let limit = b.limits.and_then(|l| l.velocity).unwrap_or(f64::INFINITY);
+            config.max_velocity.min(limit)
+        })
+        .collect();
     Ok(JointLimits {
         position,
-        velocity: vec![config.max_velocity; n],
-        acceleration: vec![config.max_acceleration; n],
+        velocity,
+        acceleration: vec![config.max_acceleration; model.dof()],
     })
 }
 
 /// Records the trajectories (in parallel, two at a time) and preprocesses them.
 fn record(
     plant: &dyn Dynamics,
-    nominal: &dyn Dynamics,
+    controller: &dyn Dynamics,
     config: &StudyConfig,
     out: &Path,
     progress: Progress<'_>,
 ) -> Result<Data> {
     let waypoints = WaypointConfig {
         duration: config.duration,
-        limits: limits(nominal, config)?,
+        limits: limits(controller, config)?,
         ..WaypointConfig::default()
     };
     let recordings = parallel_map(
         config.trajectories,
         |k| -> Result<(Trajectory, Trajectory)> {
-            let recording =
-                record_trajectory(plant, nominal, &waypoints, trajectory_seed(config.seed, k))?;
+            let seed = trajectory_seed(config.seed, k);
+            let recording = record_noisy(plant, controller, &waypoints, seed, config.noise_scale)?;
             progress(k + 1, config.trajectories, "recording trajectories");
             Ok((recording.measured, recording.reference))
         },
@@ -386,19 +442,36 @@ pub fn trajectory_seed(seed: u64, k: usize) -> u64 {
     seeds::derive(seed, Purpose::Trajectory, k as u64)
 }
 
-/// Records one random-waypoint trajectory on the virtual robot.
+/// Records one random-waypoint trajectory on the virtual robot, its
+/// controller tracking with `controller`'s dynamics.
 pub fn record_trajectory(
     plant: &dyn Dynamics,
-    nominal: &dyn Dynamics,
+    controller: &dyn Dynamics,
     waypoints: &WaypointConfig,
     seed: u64,
 ) -> Result<crate::sim::simulate::Recording> {
+    record_noisy(plant, controller, waypoints, seed, 1.0)
+}
+
+/// [`record_trajectory`] with the sensor noise scaled by `noise_scale`.
+fn record_noisy(
+    plant: &dyn Dynamics,
+    controller: &dyn Dynamics,
+    waypoints: &WaypointConfig,
+    seed: u64,
+    noise_scale: f64,
+) -> Result<crate::sim::simulate::Recording> {
     let reference = WaypointTrajectory::new(waypoints, seed)?;
+    let mut sim = SimConfig::default();
+    let noise = &mut sim.noise;
+    noise.torque_sigma *= noise_scale;
+    noise.velocity_sigma *= noise_scale;
+    noise.angle_sigma *= noise_scale;
     Ok(simulate(
         &Compiled(plant),
-        &Compiled(nominal),
+        &Compiled(controller),
         &reference,
-        &SimConfig::default(),
+        &sim,
         seed,
     )?)
 }
@@ -441,10 +514,16 @@ fn analytical_result(nominal: &dyn Dynamics, data: &Data) -> Result<ModelResult>
             ))
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(summarize(
-        "Analytical model (Euler-Lagrange)",
-        vec![pooled_mse(&pairs)],
-    ))
+    Ok(summarize(ANALYTICAL, vec![pooled_mse(&pairs)]))
+}
+
+fn identified_result(identified: &Identified, data: &Data) -> Result<ModelResult> {
+    let pairs = data
+        .test
+        .iter()
+        .map(|&k| Ok((identified.torques(&data.processed[k])?, &data.processed[k])))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(summarize(IDENTIFIED, vec![pooled_mse(&pairs)]))
 }
 
 /// Analytical-model test MSE with the thesis's moving average and with a
@@ -512,6 +591,10 @@ fn jobs(config: &StudyConfig) -> Vec<Job> {
             name: "SDNN (measured + theoretical)".into(),
             recipe: Recipe::Theoretical,
         },
+        Job {
+            name: IDENTIFIED_HYBRID.into(),
+            recipe: Recipe::IdentifiedResidual,
+        },
     ];
     for &ratio in &config.mixing_ratios {
         jobs.push(Job {
@@ -522,29 +605,43 @@ fn jobs(config: &StudyConfig) -> Vec<Job> {
     jobs
 }
 
+/// The analytical model's row.
+pub const ANALYTICAL: &str = "Analytical model (Euler-Lagrange)";
+/// The identified model's row and its hybrid's, in every table.
+pub const IDENTIFIED: &str = "Identified model (least squares)";
+pub const IDENTIFIED_HYBRID: &str = "Hybrid (identified + NN residual)";
+
 /// Training sets per recipe, built once.
 struct TrainingSets {
     measured: Dataset,
     analytical: Dataset,
     theoretical: Dataset,
     residual: Dataset,
+    identified_residual: Dataset,
 }
 
 fn training_sets(
     nominal: &dyn Dynamics,
+    identified: &Identified,
     data: &Data,
     config: &StudyConfig,
 ) -> Result<TrainingSets> {
     let mut measured = Vec::new();
     let mut analytical = Vec::new();
     let mut residual = Vec::new();
+    let mut identified_residual = Vec::new();
     for &k in &data.train {
         let traj = &data.processed[k];
         let model = model_torques(nominal, traj)?;
+        let fitted = identified.torques(traj)?;
         measured.push(Dataset::from_trajectory(traj, k)?);
         analytical.push(Dataset::from_trajectory(&traj.with_tau(model.clone())?, k)?);
         residual.push(Dataset::from_trajectory(
             &traj.with_tau(traj.tau() - model)?,
+            k,
+        )?);
+        identified_residual.push(Dataset::from_trajectory(
+            &traj.with_tau(traj.tau() - fitted)?,
             k,
         )?);
     }
@@ -554,6 +651,7 @@ fn training_sets(
         analytical: Dataset::concat(&analytical)?,
         theoretical,
         residual: Dataset::concat(&residual)?,
+        identified_residual: Dataset::concat(&identified_residual)?,
     })
 }
 
@@ -615,6 +713,7 @@ fn dataset_for(recipe: &Recipe, sets: &TrainingSets, seed: u64) -> Result<Datase
         Recipe::Measured => sets.measured.clone(),
         Recipe::Analytical => sets.analytical.clone(),
         Recipe::Residual => sets.residual.clone(),
+        Recipe::IdentifiedResidual => sets.identified_residual.clone(),
         Recipe::Synthesized { ratio } => mix(&sets.measured, &sets.analytical, *ratio, seed)?,
         Recipe::Theoretical => Dataset::concat(&[sets.measured.clone(), sets.theoretical.clone()])?,
     })
@@ -623,16 +722,21 @@ fn dataset_for(recipe: &Recipe, sets: &TrainingSets, seed: u64) -> Result<Datase
 /// Per job, per seed: (test MSE per joint, the trained network).
 type Trained = Vec<Vec<(Vec<f64>, Mlp)>>;
 
+/// A test trajectory, its network inputs, and the analytical and identified
+/// models' torques along it.
+type TestCase<'a> = (&'a Trajectory, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>);
+
 fn train_all(
     nominal: &dyn Dynamics,
+    identified: &Identified,
     data: &Data,
     config: &StudyConfig,
     jobs: &[Job],
     out: &Path,
     progress: Progress<'_>,
 ) -> Result<Trained> {
-    let sets = training_sets(nominal, data, config)?;
-    let test: Vec<(&Trajectory, DMatrix<f64>, DMatrix<f64>)> = data
+    let sets = training_sets(nominal, identified, data, config)?;
+    let test: Vec<TestCase> = data
         .test
         .iter()
         .map(|&k| {
@@ -641,6 +745,7 @@ fn train_all(
                 traj,
                 Dataset::from_trajectory(traj, k)?.inputs,
                 model_torques(nominal, traj)?,
+                identified.torques(traj)?,
             ))
         })
         .collect::<Result<_>>()?;
@@ -664,10 +769,12 @@ fn train_all(
             .with_context(|| format!("training {} (seed {seed})", job.name))?;
         let pairs = test
             .iter()
-            .map(|(traj, inputs, analytical)| {
+            .map(|(traj, inputs, analytical, fitted)| {
                 let mut predicted = network.predict(inputs)?;
-                if job.recipe == Recipe::Residual {
-                    predicted += analytical;
+                match job.recipe {
+                    Recipe::Residual => predicted += analytical,
+                    Recipe::IdentifiedResidual => predicted += fitted,
+                    _ => {}
                 }
                 Ok((predicted, *traj))
             })
@@ -756,10 +863,10 @@ fn mean_std(values: &[f64]) -> (f64, f64) {
 fn open_loop_evaluation(
     plant: &dyn Dynamics,
     nominal: &dyn Dynamics,
+    identified: &Identified,
     data: &Data,
     config: &StudyConfig,
-    jobs: &[Job],
-    networks: &Trained,
+    (jobs, networks): (&[Job], &Trained),
     models: &mut [ModelResult],
 ) -> Result<()> {
     let reference = &data.references[data.test[0]];
@@ -782,13 +889,23 @@ fn open_loop_evaluation(
         let err = q.rows(0, rows) - window.q().rows(0, rows);
         Ok((err.norm_squared() / (rows * err.ncols()) as f64).sqrt())
     };
-    models[0].open_loop_rms = Some(replay(&analytical)?);
-    for (i, (job, seeds)) in jobs.iter().zip(networks).enumerate() {
-        let mut torques = seeds[0].1.predict(&inputs)?;
-        if job.recipe == Recipe::Residual {
-            torques += &analytical;
+    let fitted = identified.torques(&window)?;
+    let mut set = |name: &str, torques: &DMatrix<f64>| -> Result<()> {
+        if let Some(m) = models.iter_mut().find(|m| m.name == name) {
+            m.open_loop_rms = Some(replay(torques)?);
         }
-        models[i + 1].open_loop_rms = Some(replay(&torques)?);
+        Ok(())
+    };
+    set(ANALYTICAL, &analytical)?;
+    set(IDENTIFIED, &fitted)?;
+    for (job, seeds) in jobs.iter().zip(networks) {
+        let mut torques = seeds[0].1.predict(&inputs)?;
+        match job.recipe {
+            Recipe::Residual => torques += &analytical,
+            Recipe::IdentifiedResidual => torques += &fitted,
+            _ => {}
+        }
+        set(&job.name, &torques)?;
     }
     Ok(())
 }

@@ -422,6 +422,12 @@ enum Channel {
 
 const CHANNELS: [Channel; 4] = [Channel::Q, Channel::Qd, Channel::Qdd, Channel::Tau];
 
+/// Largest |q| (rad) and |qd| (rad/s), |qdd| (rad/s^2) and |tau| (N m),
+/// and |t| (s) a recording may hold (see `Channel::plausible`).
+pub const PLAUSIBLE_ANGLE: f64 = 1e3;
+pub const PLAUSIBLE_TORQUE: f64 = 1e6;
+pub const PLAUSIBLE_TIME: f64 = 1e9;
+
 impl Channel {
     fn prefix(self) -> &'static str {
         match self {
@@ -437,8 +443,8 @@ impl Channel {
     /// fault, and squared in the dynamics it would overflow.
     fn plausible(self) -> f64 {
         match self {
-            Channel::Q | Channel::Qd => 1e3,
-            Channel::Qdd | Channel::Tau => 1e6,
+            Channel::Q | Channel::Qd => PLAUSIBLE_ANGLE,
+            Channel::Qdd | Channel::Tau => PLAUSIBLE_TORQUE,
         }
     }
 
@@ -661,7 +667,7 @@ fn read_table(path: &Path, opts: &ReadOptions, schema: &Schema) -> Result<Table,
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .flexible(true)
-        .from_reader(io::BufReader::new(source));
+        .from_reader(io::BufReader::new(crate::bounded::LineLimited::new(source)));
     let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
     if header.is_empty() {
         return Err(TrajectoryError::MissingHeader {
@@ -725,7 +731,7 @@ fn check_magnitudes(
             limits.push((c, ch.plausible() * scale, unit));
         }
     }
-    limits.extend(layout.time.map(|c| (c, 1e9, "s")));
+    limits.extend(layout.time.map(|c| (c, PLAUSIBLE_TIME, "s")));
     for (c, limit, unit) in limits {
         if let Some(row) = columns[c].iter().position(|v| v.abs() > limit) {
             return Err(TrajectoryError::Implausible {

@@ -440,3 +440,45 @@ fn asymmetric_friction_and_springs_are_validated_and_in_the_dynamics() {
     let g = oracle::gravity(&model, &q)[1] - oracle::gravity(&plain, &q)[1];
     assert_close(g, 2.0 * (0.7 - 0.25), "spring in g(q)");
 }
+
+#[test]
+fn stribeck_friction_and_ripple_are_validated_and_in_the_dynamics() {
+    let joint = "axis = [0.0, 1.0, 0.0]\n";
+    let with = |effects: &str| format!("{joint}effects = {{ {effects} }}\n");
+    let e = error_after(joint, &with("stribeck = 0.2"));
+    assert_mentions(&e, &["stribeck_velocity", "j2", "> 0"]);
+    let e = error_after(joint, &with("stribeck = -0.2, stribeck_velocity = 0.1"));
+    assert_mentions(&e, &["stribeck", "j2", ">= 0"]);
+    let e = error_after(joint, &with("ripple_cos = 0.1"));
+    assert_mentions(&e, &["ripple_cycles", "j2", "> 0"]);
+    let e = error_after(joint, &with("ripple_sin = 0.1, ripple_cycles = 1e6"));
+    assert_mentions(&e, &["ripple_cycles", "beyond"]);
+    let e = error_after(joint, &with("stribeck_velocity = -1"));
+    assert_mentions(&e, &["stribeck_velocity", ">= 0"]);
+    // Valid: friction fades past the Stribeck velocity, the ripple is in
+    // g(q) too.
+    let source = VALID.replacen(
+        joint,
+        &with(
+            "stribeck = 0.4, stribeck_velocity = 0.05, ripple_sin = 0.1, ripple_cos = 0.2, \
+             ripple_cycles = 7",
+        ),
+        1,
+    );
+    let model = Model::from_description(&parse(&source).unwrap());
+    let plain = Model::from_description(&parse(VALID).unwrap());
+    let (q, qdd) = ([0.2, 0.7], [0.0, 0.0]);
+    let ripple = 0.1 * (7.0 * 0.7_f64).sin() + 0.2 * (7.0 * 0.7_f64).cos();
+    for (qd, friction) in [
+        (0.05, 0.4 * (-1.0_f64).exp()),
+        (-0.1, -0.4 * (-4.0_f64).exp()),
+        (0.0, 0.0),
+    ] {
+        let qd = [0.1, qd];
+        let difference =
+            oracle::rnea(&model, &q, &qd, &qdd)[1] - oracle::rnea(&plain, &q, &qd, &qdd)[1];
+        assert_close(difference, friction + ripple, "tau difference");
+    }
+    let g = oracle::gravity(&model, &q)[1] - oracle::gravity(&plain, &q)[1];
+    assert_close(g, ripple, "ripple in g(q)");
+}

@@ -209,7 +209,10 @@ fn planar_two_link_matches_closed_form() {
         let g1 = (m1 * lc1 + m2 * l1) * g * c1 + m2 * lc2 * g * c12;
         let g2 = m2 * lc2 * g * c12;
         let tau1 = m11 * qdd[0] + m12 * qdd[1] - h * (2.0 * qd[0] * qd[1] + qd[1] * qd[1]) + g1;
-        let tau2 = m12 * qdd[0] + m22 * qdd[1] + h * qd[0] * qd[0] + g2;
+        // The elbow's Stribeck friction and ripple (models/planar_2link.toml).
+        let stribeck = 0.3 * qd[1].signum() * (-(qd[1] / 0.1).powi(2)).exp();
+        let ripple = 0.05 * (12.0 * q[1]).sin();
+        let tau2 = m12 * qdd[0] + m22 * qdd[1] + h * qd[0] * qd[0] + g2 + stribeck + ripple;
         let generated = arm::tau(&[q[0], q[1]], &[qd[0], qd[1]], &[qdd[0], qdd[1]]);
         assert_close(generated[0], tau1, "planar tau1");
         assert_close(generated[1], tau2, "planar tau2");
@@ -254,6 +257,26 @@ proptest! {
             prop_assert_eq!(c[i].to_bits(), ci.to_bits());
         }
     }
+}
+
+/// The generated Stribeck shape (its own `exp`, `core` only) agrees with
+/// std's to about one ulp, from rest to where it vanishes, both ways.
+#[test]
+fn generated_stribeck_matches_std() {
+    use sdnn::models::planar_2link::stribeck;
+    let mut worst: f64 = 0.0;
+    for i in -300_000..=300_000 {
+        let v = f64::from(i) * 1e-4 + 1e-9;
+        for v_s in [0.013, 0.1, 1.7] {
+            let want = v.signum() * (-(v / v_s).powi(2)).exp();
+            worst = worst.max((stribeck(v, v_s) - want).abs() / want.abs().max(1e-200));
+        }
+    }
+    assert!(worst <= 1e-14, "worst relative error {worst:e}");
+    assert_eq!(stribeck(0.0, 0.1), 0.0);
+    assert_eq!(stribeck(0.5, 0.0), 0.0);
+    assert_eq!(stribeck(1e300, 0.1), 0.0);
+    assert!(stribeck(f64::NAN, 0.1).is_nan());
 }
 
 /// The generated sin_cos agrees with the standard library to about one ulp

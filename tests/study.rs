@@ -41,9 +41,15 @@ fn small_study_writes_results_and_is_deterministic() {
         assert!(a.path().join(file).exists(), "{file} missing");
     }
     assert_eq!(first.test_trajectories.len(), 1);
-    assert_eq!(first.models.len(), 1 + 5 + 1);
+    // Analytical and identified models, six networks, one mixing ratio.
+    assert_eq!(first.models.len(), 2 + 6 + 1);
     let analytical = &first.models[0];
     assert!(analytical.mse_mean > 0.0 && analytical.mse_std == 0.0);
+    // The plant is the nominal model plus friction and armature, all in
+    // the regressor: least squares on the training data beats the model.
+    let identified = &first.models[1];
+    assert_eq!(identified.name, study::IDENTIFIED);
+    assert!(identified.mse_mean < analytical.mse_mean, "{first:?}");
     for model in &first.models {
         assert_eq!(model.mse_per_joint.len(), 3);
         assert!(
@@ -55,6 +61,45 @@ fn small_study_writes_results_and_is_deterministic() {
     run(b.path());
     let json = |d: &Dir| std::fs::read_to_string(d.path().join("results.json")).unwrap();
     assert_eq!(json(&a), json(&b), "same seed, different results");
+}
+
+/// The thesis situation: Kinova's arm recorded, the thesis's model under
+/// test, which is worse there than the least-squares model.
+#[test]
+fn the_thesis_situation_runs_and_its_analytical_model_is_worse() {
+    let dir = Dir::new();
+    let out = dir.path().join("thesis");
+    let json = sdnn_json(&[
+        "reproduce",
+        "--situation",
+        "thesis",
+        "--trajectories",
+        "4",
+        "--train",
+        "3",
+        "--duration",
+        "8",
+        "--seeds",
+        "1",
+        "--epochs",
+        "2",
+        "--format",
+        "json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(json["plant"], "kinova_gen3_lite_urdf_plant");
+    let mse = |name: &str| {
+        json["models"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["name"] == name)
+            .and_then(|m| m["mse_mean"].as_f64())
+            .unwrap_or_else(|| panic!("{name} missing: {json}"))
+    };
+    assert!(mse(study::IDENTIFIED) < mse(study::ANALYTICAL), "{json}");
+    assert!(mse(study::IDENTIFIED_HYBRID).is_finite());
 }
 
 /// The plant (truth) model explains data recorded on it better than the

@@ -12,5 +12,6 @@ mod hostile;
 mod lumping;
 mod readers_fuzz;
 mod springs;
+mod stribeck;
 mod study;
 mod util;

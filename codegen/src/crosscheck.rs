@@ -27,12 +27,13 @@ pub fn against_lagrangian(
         .iter()
         .flat_map(|b| b.inertial.standard_parameters())
         .collect();
+    let effects: Vec<_> = chain.bodies.iter().map(|b| b.effects).collect();
     let mut seed = 0x5eed_u64;
     for _ in 0..STATES {
         let mut draw =
             |scale: f64| -> Vec<f64> { (0..n).map(|_| scale * uniform(&mut seed)).collect() };
         let (q, qd, qdd) = (draw(std::f64::consts::PI), draw(2.0), draw(5.0));
-        let x = inputs(&q, &qd, &qdd);
+        let x = inputs(&q, &qd, &qdd, &effects);
         let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
         let y = eval(&traced.regressor);
         let tau = eval(&traced.tau);
@@ -41,16 +42,10 @@ pub fn against_lagrangian(
             let expected: Vec<f64> = rigid.regressor[i].iter().map(|p| p.evaluate(&x)).collect();
             let got = &y[i * width..i * width + 10 * n];
             compare(&format!("regressor row {}", i + 1), got, &expected)?;
-            let e = chain.bodies[i].effects;
-            let sign = x[crate::recursive::INPUTS_PER_JOINT * i + 4];
-            let effects = e.armature * qdd[i]
-                + e.viscous * qd[i]
-                + e.coulomb * sign
-                + e.coulomb_asymmetry * sign * sign
-                + e.spring * (q[i] - e.spring_rest)
-                + e.offset;
+            let e = &effects[i];
+            let effect = e.motion_torque(qd[i], qdd[i]) + e.position_torque(q[i]);
             let lagrange: f64 = expected.iter().zip(&parameters).map(|(c, p)| c * p).sum();
-            compare(&format!("tau[{}]", i + 1), &[tau[i]], &[lagrange + effects])?;
+            compare(&format!("tau[{}]", i + 1), &[tau[i]], &[lagrange + effect])?;
         }
     }
     Ok(())

@@ -384,7 +384,7 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
     }
     let e = &joint.effects;
     let effects = e.parameters();
-    if !finite(&effects) || !e.spring_rest.is_finite() {
+    if !finite(&effects) || !finite(&e.shapes()) {
         return Err(Located::new(
             at.key("effects"),
             "effects must be finite numbers",
@@ -402,6 +402,7 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
         at.key("effects"),
         "effect coefficient",
     )?;
+    shaping_numbers(e, &joint.name, &at.key("effects"))?;
     if e.coulomb_asymmetry.abs() > e.coulomb {
         return Err(Located::new(
             at.key("effects").key("coulomb_asymmetry"),
@@ -417,6 +418,7 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
         ("viscous", e.viscous),
         ("coulomb", e.coulomb),
         ("spring", e.spring),
+        ("stribeck", e.stribeck),
     ] {
         if value < 0.0 {
             return Err(Located::new(
@@ -495,4 +497,42 @@ fn plausible(values: &[f64], limit: f64, at: KeyPath, what: &str) -> Result<(), 
         )),
         None => Ok(()),
     }
+}
+
+/// Fastest Stribeck velocity, rad/s, and most ripple periods per revolution.
+pub const PLAUSIBLE_STRIBECK_VELOCITY: f64 = 1e2;
+pub const PLAUSIBLE_RIPPLE_CYCLES: f64 = 1e4;
+
+/// The Stribeck velocity and the ripple's cycles: within range, and
+/// positive where their effect is present (a zero would divide or vanish).
+fn shaping_numbers(e: &JointEffects, joint: &str, at: &KeyPath) -> Result<(), Located> {
+    let checks = [
+        (
+            "stribeck_velocity",
+            e.stribeck_velocity,
+            PLAUSIBLE_STRIBECK_VELOCITY,
+            e.stribeck != 0.0,
+            "rad/s, the speed past which the breakaway excess `stribeck` fades",
+        ),
+        (
+            "ripple_cycles",
+            e.ripple_cycles,
+            PLAUSIBLE_RIPPLE_CYCLES,
+            e.ripple_sin != 0.0 || e.ripple_cos != 0.0,
+            "periods of the ripple per joint revolution",
+        ),
+    ];
+    for (key, value, limit, needed, meaning) in checks {
+        plausible(&[value], limit, at.key(key), key)?;
+        if value < 0.0 || (needed && value == 0.0) {
+            let requirement = if needed { "> 0" } else { ">= 0" };
+            return Err(Located::new(
+                at.key(key),
+                format!(
+                    "{key} of joint `{joint}` must be {requirement} ({meaning}), found {value}"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

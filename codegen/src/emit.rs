@@ -28,8 +28,10 @@ impl Argument {
 }
 
 /// The program inputs, derived from the arguments: per joint i (1-based in
-/// names) sin and cos of q_i, qd_i, qdd_i, sign(qd_i) and q_i itself (a
-/// joint spring's stretch).
+/// names) sin and cos of q_i, qd_i, qdd_i, sign(qd_i), q_i itself (a
+/// joint spring's stretch), the Stribeck shape
+/// sign(qd_i) exp(-(qd_i/v_s)^2), and sin and cos of the ripple's angle
+/// cycles*q_i.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Input {
     Sin(usize),
@@ -38,6 +40,9 @@ pub enum Input {
     Qdd(usize),
     Sign(usize),
     Q(usize),
+    Stribeck(usize),
+    RippleSin(usize),
+    RippleCos(usize),
 }
 
 impl Input {
@@ -49,6 +54,9 @@ impl Input {
             Input::Qdd(i) => format_ident!("qdd{}", i + 1),
             Input::Sign(i) => format_ident!("sign_qd{}", i + 1),
             Input::Q(i) => format_ident!("q{}", i + 1),
+            Input::Stribeck(i) => format_ident!("stribeck{}", i + 1),
+            Input::RippleSin(i) => format_ident!("ripple_s{}", i + 1),
+            Input::RippleCos(i) => format_ident!("ripple_c{}", i + 1),
         }
     }
 }
@@ -196,6 +204,23 @@ impl Function<'_> {
             if has(Input::Sign(i)) {
                 let sg = Input::Sign(i).ident();
                 lines.push(quote! { let #sg = sign(qd[#index]); });
+            }
+            if has(Input::Stribeck(i)) {
+                let st = Input::Stribeck(i).ident();
+                let velocity = format_ident!("{}", crate::recursive::stribeck_velocity(i + 1));
+                lines.push(quote! { let #st = stribeck(qd[#index], #velocity); });
+            }
+            if has(Input::RippleSin(i)) || has(Input::RippleCos(i)) {
+                let [s, c] = [Input::RippleSin(i), Input::RippleCos(i)].map(|input| {
+                    let ident = input.ident();
+                    if has(input) {
+                        quote! { #ident }
+                    } else {
+                        quote! { _ }
+                    }
+                });
+                let cycles = format_ident!("{}", crate::recursive::ripple_cycles(i + 1));
+                lines.push(quote! { let (#s, #c) = sin_cos(#cycles * q[#index]); });
             }
         }
         lines
@@ -533,8 +558,10 @@ impl Printer<'_> {
 
 fn argument_of(input: Input) -> Argument {
     match input {
-        Input::Sin(_) | Input::Cos(_) | Input::Q(_) => Argument::Q,
-        Input::Qd(_) | Input::Sign(_) => Argument::Qd,
+        Input::Sin(_) | Input::Cos(_) | Input::Q(_) | Input::RippleSin(_) | Input::RippleCos(_) => {
+            Argument::Q
+        }
+        Input::Qd(_) | Input::Sign(_) | Input::Stribeck(_) => Argument::Qd,
         Input::Qdd(_) => Argument::Qdd,
     }
 }

@@ -174,7 +174,7 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
         },
         Spec {
             name: "gravity",
-            doc: " Potential torque g(q) = dU/dq: gravity and joint springs, N m.",
+            doc: " Torque of the position alone g(q): gravity, joint springs and torque ripple, N m.",
             arguments: Q,
             shape: Shape::Vector(n),
             roots: traced.gravity.clone(),
@@ -188,7 +188,7 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
         },
         Spec {
             name: "effects",
-            doc: " Joint effects without armature: viscous*qd + coulomb*sign(qd) + coulomb_asymmetry*|sign(qd)| + offset, N m.",
+            doc: " Joint friction and offset: viscous*qd + coulomb*sign(qd) + coulomb_asymmetry*|sign(qd)| + stribeck*stribeck(qd, stribeck_velocity) + offset, N m.",
             arguments: &[Argument::Qd],
             shape: Shape::Vector(n),
             roots: traced.effects.clone(),

@@ -39,7 +39,7 @@ pub struct RigidBodyTorque {
 }
 
 /// Program inputs of a chain with `dof` joints, in the order the polynomial
-/// exponent vectors use: per joint sin, cos, qd, qdd, sign(qd), q
+/// exponent vectors use: per joint sin, cos, qd, qdd, sign(qd), q, Stribeck shape, ripple sin and cos
 /// (`recursive::INPUTS_PER_JOINT`).
 pub fn inputs(dof: usize) -> Vec<Input> {
     (0..dof)
@@ -51,6 +51,9 @@ pub fn inputs(dof: usize) -> Vec<Input> {
                 Input::Qdd(i),
                 Input::Sign(i),
                 Input::Q(i),
+                Input::Stribeck(i),
+                Input::RippleSin(i),
+                Input::RippleCos(i),
             ]
         })
         .collect()

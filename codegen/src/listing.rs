@@ -56,7 +56,7 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
     quote! {
         /// Number of moving joints.
         pub const DOF: usize = #dof;
-        /// Number of regressor parameters: 10 inertial per link, 6 effects per joint.
+        /// Number of regressor parameters: 10 inertial per link, 9 effects per joint.
         pub const NUM_PARAMETERS: usize = #count;
         /// Names of the moving joints, base first.
         pub const JOINT_NAMES: [&str; #dof] = [#(#joints),*];
@@ -65,7 +65,7 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
         /// Parameter values of this description, in regressor column order:
         /// per link m, m*c (x, y, z), inertia about the link origin (xx, xy, yy,
         /// xz, yz, zz); then per joint armature, viscous, coulomb, offset,
-        /// coulomb_asymmetry, spring.
+        /// coulomb_asymmetry, spring, stribeck, ripple_sin, ripple_cos.
         pub const PARAMETERS: [f64; #count] = [#(#values),*];
         /// Names of PARAMETERS, suffixed by the 1-based link or joint.
         pub const PARAMETER_NAMES: [&str; #count] = [#(#names),*];

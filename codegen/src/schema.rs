@@ -95,8 +95,10 @@ pub struct Limits {
 
 /// Per-joint effects added to the rigid-body torque:
 /// `armature*qdd + viscous*qd + coulomb*sign(qd) + coulomb_asymmetry*|sign(qd)|
-/// + offset`, and a joint spring `spring*(q - spring_rest)` (a potential
-/// torque, part of the generated `gravity`).
+/// + stribeck*sign(qd)*exp(-(qd/stribeck_velocity)^2) + offset`, and the
+/// torques of the position alone (part of the generated `gravity`): a joint
+/// spring `spring*(q - spring_rest)` and a torque ripple
+/// `ripple_sin*sin(ripple_cycles*q) + ripple_cos*cos(ripple_cycles*q)`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointEffects {
@@ -123,6 +125,24 @@ pub struct JointEffects {
     /// The spring's rest angle, rad.
     #[serde(default)]
     pub spring_rest: f64,
+    /// Stribeck friction: how far the breakaway friction at rest exceeds
+    /// the sliding (Coulomb) level, N m; it fades as the speed grows past
+    /// `stribeck_velocity`.
+    #[serde(default)]
+    pub stribeck: f64,
+    /// The Stribeck velocity, rad/s (> 0 when `stribeck` is not 0).
+    #[serde(default)]
+    pub stribeck_velocity: f64,
+    /// Position-dependent torque ripple (cogging, gear or sensor
+    /// harmonics), N m: the sine and cosine amplitudes of its harmonic.
+    #[serde(default)]
+    pub ripple_sin: f64,
+    #[serde(default)]
+    pub ripple_cos: f64,
+    /// The ripple's periods per joint revolution (> 0 when a ripple
+    /// amplitude is not 0).
+    #[serde(default)]
+    pub ripple_cycles: f64,
 }
 
 /// Names of the joint-effect parameters of joint i (the order of
@@ -134,9 +154,12 @@ pub const EFFECT_NAMES: [&str; EFFECTS_PER_JOINT] = [
     "offset",
     "coulomb_asymmetry",
     "spring",
+    "stribeck",
+    "ripple_sin",
+    "ripple_cos",
 ];
 /// Regressor columns per joint: its effects.
-pub const EFFECTS_PER_JOINT: usize = 6;
+pub const EFFECTS_PER_JOINT: usize = 9;
 /// Regressor columns per degree of freedom: ten inertial and the effects.
 pub const PARAMETERS_PER_JOINT: usize = 10 + EFFECTS_PER_JOINT;
 /// The generated constants of the effects, `JOINT{i}_` + these.
@@ -147,13 +170,18 @@ pub const EFFECT_CONSTANTS: [&str; EFFECTS_PER_JOINT] = [
     "OFFSET",
     "COULOMB_ASYMMETRY",
     "SPRING",
+    "STRIBECK",
+    "RIPPLE_SIN",
+    "RIPPLE_COS",
 ];
 
 impl JointEffects {
     /// The effect parameters in regressor order (see `EFFECT_NAMES`); the
-    /// spring's rest angle is not one (the regressor's spring column is
-    /// q - spring_rest).
-    pub fn parameters(&self) -> [f64; 6] {
+    /// spring's rest angle, the Stribeck velocity and the ripple's cycles
+    /// are not (they shape the columns: q - spring_rest,
+    /// sign(qd) exp(-(qd/stribeck_velocity)^2), sin and cos of
+    /// ripple_cycles*q; see [`JointEffects::shapes`]).
+    pub fn parameters(&self) -> [f64; EFFECTS_PER_JOINT] {
         [
             self.armature,
             self.viscous,
@@ -161,7 +189,56 @@ impl JointEffects {
             self.offset,
             self.coulomb_asymmetry,
             self.spring,
+            self.stribeck,
+            self.ripple_sin,
+            self.ripple_cos,
         ]
+    }
+
+    /// The numbers that shape the regressor's columns: spring_rest,
+    /// stribeck_velocity, ripple_cycles.
+    pub fn shapes(&self) -> [f64; 3] {
+        [self.spring_rest, self.stribeck_velocity, self.ripple_cycles]
+    }
+
+    /// sign(qd) exp(-(qd/stribeck_velocity)^2), 0 without a Stribeck
+    /// velocity: the Stribeck column (std's `exp`; the generated code has
+    /// its own).
+    pub fn stribeck_shape(&self, qd: f64) -> f64 {
+        if self.stribeck_velocity > 0.0 {
+            let x = qd / self.stribeck_velocity;
+            sign(qd) * (-x * x).exp()
+        } else {
+            0.0
+        }
+    }
+
+    /// The torque of the position alone: spring and ripple.
+    pub fn position_torque(&self, q: f64) -> f64 {
+        let (s, c) = (self.ripple_cycles * q).sin_cos();
+        self.spring * (q - self.spring_rest) + self.ripple_sin * s + self.ripple_cos * c
+    }
+
+    /// The velocity and acceleration effects, armature included.
+    pub fn motion_torque(&self, qd: f64, qdd: f64) -> f64 {
+        let sign = sign(qd);
+        self.armature * qdd
+            + self.viscous * qd
+            + self.coulomb * sign
+            + self.coulomb_asymmetry * sign * sign
+            + self.stribeck * self.stribeck_shape(qd)
+            + self.offset
+    }
+}
+
+/// sign(x) with sign(0) = 0, as the generated code.
+pub fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
     }
 }
 

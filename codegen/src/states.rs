@@ -1,12 +1,29 @@
 //! Joint states for checks: program inputs of a state, and a small
 //! deterministic generator (the cross-check and the tests need no RNG crate).
 
-/// Program inputs of a state: per joint sin, cos, qd, qdd, sign(qd), q
-/// (sign(0) = 0, as the generated code).
-pub(crate) fn inputs(q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
-    let sign = |x: f64| if x == 0.0 { 0.0 } else { x.signum() };
+use crate::schema::{JointEffects, sign};
+
+/// Program inputs of a state: per joint sin, cos, qd, qdd, sign(qd), q,
+/// the Stribeck shape and the ripple's sine and cosine, whose shaping
+/// numbers come from the joints' `effects` (sign(0) = 0, as the generated
+/// code).
+pub(crate) fn inputs(q: &[f64], qd: &[f64], qdd: &[f64], effects: &[JointEffects]) -> Vec<f64> {
     (0..q.len())
-        .flat_map(|i| [q[i].sin(), q[i].cos(), qd[i], qdd[i], sign(qd[i]), q[i]])
+        .flat_map(|i| {
+            let e = &effects[i];
+            let (ripple_sin, ripple_cos) = (e.ripple_cycles * q[i]).sin_cos();
+            [
+                q[i].sin(),
+                q[i].cos(),
+                qd[i],
+                qdd[i],
+                sign(qd[i]),
+                q[i],
+                e.stribeck_shape(qd[i]),
+                ripple_sin,
+                ripple_cos,
+            ]
+        })
         .collect()
 }
 

@@ -1,5 +1,6 @@
 //! The helpers every generated file carries after its functions: `sign`,
-//! the fused multiply-add `AddMul` the emitted sums use, and `sin_cos`.
+//! `stribeck`, the fused multiply-add `AddMul` the emitted sums use, and
+//! `sin_cos`.
 //! They need only `core`, so a generated file compiles in a `#![no_std]`
 //! crate with no dependency.
 
@@ -15,6 +16,51 @@ pub fn items() -> TokenStream {
         #[must_use]
         pub fn sign(x: f64) -> f64 {
             if x > 0.0 { 1.0 } else if x < 0.0 { -1.0 } else { 0.0 }
+        }
+        /// The Stribeck shape sign(v) exp(-(v/v_s)^2): the breakaway excess's
+        /// share at speed v, 1 leaving rest, fading past v_s; 0 without a
+        /// Stribeck velocity (v_s <= 0).
+        #[inline]
+        #[must_use]
+        pub fn stribeck(v: f64, v_s: f64) -> f64 {
+            if !(v_s > 0.0) {
+                return 0.0;
+            }
+            let x = v / v_s;
+            sign(v) * exp_neg(x * x)
+        }
+        /// exp(-y) for y >= 0 to about one ulp (`core` has no `exp`): y =
+        /// k ln 2 + r with |r| <= ln 2 / 2 (ln 2 in two parts, k ln2_hi
+        /// exact), exp(-r) by its Taylor polynomial to r^13 (the first
+        /// omitted term is below 4e-18), times 2^-k; 0 past y = 708, where
+        /// exp(-y) leaves the normal range.
+        #[allow(clippy::excessive_precision)]
+        fn exp_neg(y: f64) -> f64 {
+            if !(y <= 708.0) {
+                return if y.is_nan() { y } else { 0.0 };
+            }
+            // y >= 0, so truncation rounds to nearest.
+            let k = (y * 1.4426950408889634 + 0.5) as u64;
+            let kf = k as f64;
+            let r = (kf * 6.93147180369123816490e-01 - y) + kf * 1.90821492927058770002e-10;
+            let coefficients = [
+                1.0,
+                1.0,
+                0.5,
+                0.16666666666666666,
+                0.041666666666666664,
+                0.008333333333333333,
+                0.001388888888888889,
+                0.0001984126984126984,
+                2.48015873015873e-5,
+                2.7557319223985893e-6,
+                2.755731922398589e-7,
+                2.505210838544172e-8,
+                2.08767569878681e-9,
+                1.6059043836821613e-10,
+            ];
+            let polynomial = coefficients.iter().rev().fold(0.0f64, |acc, &c| c.add_mul(r, acc));
+            polynomial * f64::from_bits((1023 - k) << 52)
         }
         /// `self + a * b` and `self - a * b` (see `fused`).
         trait AddMul {

@@ -5,6 +5,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::Kind;
 use super::data::{Link, Stacked};
+use super::search;
 
 /// One candidate: a kind, a joint or link, its columns and how its named
 /// parameters map to coefficients of those columns.
@@ -24,6 +25,14 @@ pub(super) struct Candidate {
     /// scored with it, so they are what the applied model will show.
     pub(super) applied: Option<DVector<f64>>,
     pub(super) shape: Shape,
+    /// Numbers that shape the columns, chosen from the data before the
+    /// fit (a Stribeck velocity, a ripple's cycles), reported with the
+    /// parameters.
+    pub(super) settings: Vec<(&'static str, f64)>,
+    /// How many column shapes the settings were chosen from (1: fixed):
+    /// the significance threshold grows with it, so a search over many
+    /// shapes does not find structure in noise.
+    pub(super) searched: usize,
 }
 
 /// Parameters -> column coefficients.
@@ -226,6 +235,12 @@ pub(super) struct Columns {
     pub(super) coulomb_levels: Vec<f64>,
     /// The longest sample period of the raw recordings, s.
     pub(super) sample_period: f64,
+    /// Per Stribeck velocity of `search::STRIBECK_VELOCITIES` the fitted
+    /// (moving sign) and applied (the model's sign) Stribeck columns.
+    pub(super) stribeck: Vec<(DVector<f64>, DVector<f64>)>,
+    /// Per joint the speed below which it counts as at rest (the largest
+    /// over the recordings), rad/s.
+    pub(super) rest: Vec<f64>,
 }
 
 /// Every candidate effect: per joint viscous, Coulomb and direction-dependent
@@ -250,6 +265,8 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         measured_rate,
         coulomb_levels,
         sample_period,
+        stribeck,
+        rest,
     } = columns;
     let model_torque = &data.measured - &data.residual;
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
@@ -269,6 +286,8 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             columns: vec![own(j, f)],
             applied: None,
             shape: Shape::Linear,
+            settings: Vec::new(),
+            searched: 1,
         };
         list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
         list.push(Candidate {
@@ -290,6 +309,36 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             columns: vec![own(j, &|r| angle[r]), own(j, &|r| ones[r])],
             ..one(Kind::JointSpring, "", &|_| 0.0)
         });
+        let linear: Vec<&DVector<f64>> = [&qd, &sign, &qdd, &ones, &angle, &model_torque]
+            .into_iter()
+            .chain(&inertial)
+            .chain(tilt.iter().flat_map(|(_, columns)| columns))
+            .collect();
+        let nuisance = search::Nuisance::new(data, j, &linear);
+        let at_rest = rest.get(j).copied().unwrap_or(0.0);
+        if let Some((k, velocity, searched)) =
+            search::stribeck_velocity(&nuisance, at_rest, &stribeck)
+        {
+            let (fitted, applied) = &stribeck[k];
+            list.push(Candidate {
+                applied: Some(own(j, &|r| applied[r])),
+                settings: vec![("velocity", velocity)],
+                searched,
+                ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])
+            });
+        }
+        if let Some((cycles, searched)) = search::ripple_cycles(data, j, &angle, &nuisance) {
+            list.push(Candidate {
+                names: vec!["sin", "cos"],
+                columns: vec![
+                    own(j, &|r| (cycles * angle[r]).sin()),
+                    own(j, &|r| (cycles * angle[r]).cos()),
+                ],
+                settings: vec![("cycles", cycles)],
+                searched,
+                ..one(Kind::TorqueRipple, "", &|_| 0.0)
+            });
+        }
     }
     let whole = |kind, names: Vec<&'static str>, columns| Candidate {
         kind,
@@ -300,6 +349,8 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         columns,
         applied: None,
         shape: Shape::Linear,
+        settings: Vec::new(),
+        searched: 1,
     };
     list.push(Candidate {
         shape: Shape::Delay { sample_period },
@@ -360,6 +411,8 @@ fn link_candidate(k: usize, n: usize, link: &Link, columns: Vec<DVector<f64>>) -
         columns,
         applied: None,
         shape,
+        settings: Vec::new(),
+        searched: 1,
     }
 }
 

@@ -3,6 +3,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Columns, Shape, candidates};
+use super::search::stribeck_velocities;
 use crate::dynamics::{Dynamics, model_torques};
 use crate::oracle::{self, Model, coulomb_sign};
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
@@ -92,6 +93,9 @@ struct Rows {
     /// d/dt of the measured torque (a delay's column: a torque logged late
     /// is, to first order, the torque minus the delay times its rate).
     measured_rate: Vec<f64>,
+    /// Stribeck columns per velocity of `search::stribeck_velocities`: the
+    /// fitted ones (moving sign), then the applied ones (the model's sign).
+    stribeck: Vec<Vec<f64>>,
 }
 
 impl Rows {
@@ -109,6 +113,7 @@ impl Rows {
         .chain(self.generic.iter_mut())
         .chain(self.tilt.iter_mut())
         .chain([&mut self.measured_rate])
+        .chain(self.stribeck.iter_mut())
     }
 
     /// The first row where any signal is not finite.
@@ -120,18 +125,40 @@ impl Rows {
             .chain(self.generic.iter())
             .chain(self.tilt.iter())
             .chain([&self.measured_rate])
+            .chain(self.stribeck.iter())
             .filter_map(|v| v.iter().position(|x| !x.is_finite()))
             .min()
     }
 
-    /// The fitted columns.
-    fn fitted_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
+    /// The candidates' columns.
+    fn columns_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
         self.own
             .iter_mut()
             .chain(self.inertial.iter_mut())
             .chain(self.generic.iter_mut())
             .chain(self.tilt.iter_mut())
             .chain([&mut self.measured_rate])
+            .chain(self.stribeck.iter_mut())
+    }
+
+    fn columns(&self) -> impl Iterator<Item = &Vec<f64>> {
+        self.own
+            .iter()
+            .chain(&self.inertial)
+            .chain(&self.generic)
+            .chain(&self.tilt)
+            .chain([&self.measured_rate])
+            .chain(&self.stribeck)
+    }
+
+    /// Empty rows with every column (`stribeck` Stribeck velocities).
+    fn with_columns(dof: usize, capacity: usize, stribeck: usize) -> Rows {
+        Rows {
+            inertial: vec![Vec::with_capacity(capacity); 10 * dof],
+            generic: vec![Vec::with_capacity(capacity); GENERIC_FEATURES.len()],
+            stribeck: vec![Vec::with_capacity(capacity); 2 * stribeck],
+            ..Rows::default()
+        }
     }
 
     fn keep(&self, dof: usize, samples: &[usize]) -> Rows {
@@ -153,6 +180,7 @@ impl Rows {
             generic: self.generic.iter().map(pick).collect(),
             tilt: std::array::from_fn(|k| pick(&self.tilt[k])),
             measured_rate: pick(&self.measured_rate),
+            stribeck: self.stribeck.iter().map(pick).collect(),
         }
     }
 }
@@ -178,12 +206,18 @@ pub(super) fn stack(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
     pipeline: &Pipeline,
-    segments: Option<usize>,
+    settings: &super::Settings,
 ) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
     let n = model.dof();
+    let velocities = if settings.stribeck {
+        stribeck_velocities()
+    } else {
+        Vec::new()
+    };
     let tilted = tilted_models(model);
     let mut kept = Vec::new();
     let mut durations = Vec::new();
+    let mut at_rest = vec![0.0_f64; n];
     let mut trimmed = 0;
     for (g, raw) in recordings.iter().enumerate() {
         if raw.dof() != n {
@@ -202,7 +236,10 @@ pub(super) fn stack(
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
                 let rest = rest_velocities(raw, &traj, &settings);
-                let mut rows = rows(model, models(&tilted), &traj, &rest)?;
+                for (largest, r) in at_rest.iter_mut().zip(&rest) {
+                    *largest = largest.max(*r);
+                }
+                let mut rows = rows(model, models(&tilted), &traj, &rest, &velocities)?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -212,8 +249,11 @@ pub(super) fn stack(
                 let traj = settings.apply(raw)?;
                 let dt = step(&traj);
                 let rest = vec![MOVING; n];
+                for largest in at_rest.iter_mut() {
+                    *largest = largest.max(MOVING);
+                }
                 (
-                    rows(model, models(&tilted), &traj, &rest)?,
+                    rows(model, models(&tilted), &traj, &rest, &velocities)?,
                     (0..traj.len()).collect(),
                     dt,
                 )
@@ -232,15 +272,11 @@ pub(super) fn stack(
         durations.push(samples.len() as f64 * dt * settings.downsample.max(1) as f64);
         kept.push(rows.keep(n, &samples));
     }
-    let counts = match segments {
+    let counts = match settings.segments {
         Some(k) => vec![k; kept.len()],
         None => segment_counts(&durations),
     };
-    let mut all = Rows {
-        inertial: vec![Vec::new(); 10 * n],
-        generic: vec![Vec::new(); GENERIC_FEATURES.len()],
-        ..Rows::default()
-    };
+    let mut all = Rows::with_columns(n, 0, velocities.len());
     let mut group = Vec::new();
     for ((rows, &count), &seconds) in kept.iter().zip(&counts).zip(&durations) {
         let samples = rows.residual.len() / n;
@@ -259,14 +295,7 @@ pub(super) fn stack(
         all.qdd.extend(&rows.qdd);
         all.gravity.extend(&rows.gravity);
         all.coulomb_applied.extend(&rows.coulomb_applied);
-        let from = rows
-            .own
-            .iter()
-            .chain(&rows.inertial)
-            .chain(&rows.generic)
-            .chain(&rows.tilt)
-            .chain([&rows.measured_rate]);
-        for (to, from) in all.fitted_mut().zip(from) {
+        for (to, from) in all.columns_mut().zip(rows.columns()) {
             to.extend(from);
         }
     }
@@ -296,6 +325,8 @@ pub(super) fn stack(
         measured_rate: DVector::from_vec(all.measured_rate),
         coulomb_levels: coulomb_levels(model),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
+        stribeck: stribeck_pairs(all.stribeck),
+        rest: at_rest,
     };
     let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout))
@@ -322,23 +353,20 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
 
 /// The model's residual and candidate columns at every sample of `traj`.
 /// `rest[j]`: joint j's speed below which it counts as at rest (see
-/// [`rest_velocities`]).
+/// [`rest_velocities`]); Stribeck columns for each of `velocities`.
 fn rows(
     model: &dyn Dynamics,
     tilted: Option<&[Model; 3]>,
     traj: &Trajectory,
     rest: &[f64],
+    velocities: &[f64],
 ) -> anyhow::Result<Rows> {
     let n = model.dof();
     let predicted = model_torques(model, traj)?;
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
-    let mut rows = Rows {
-        inertial: vec![Vec::with_capacity(traj.len() * n); 10 * n],
-        generic: vec![Vec::with_capacity(traj.len() * n); GENERIC_FEATURES.len()],
-        ..Rows::default()
-    };
+    let mut rows = Rows::with_columns(n, traj.len() * n, velocities.len());
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
     for s in 0..traj.len() {
@@ -370,9 +398,25 @@ fn rows(
                 column.push(tilt.as_ref().map_or(0.0, |t| t[k][i]));
             }
             rows.measured_rate.push(measured_rate[(s, i)]);
+            let (fitted, applied) = rows.stribeck.split_at_mut(velocities.len());
+            for ((fitted, applied), v) in fitted.iter_mut().zip(applied).zip(velocities) {
+                let fading = (-(qd[i] / v).powi(2)).exp();
+                fitted.push(sign * fading);
+                applied.push(coulomb_sign(qd[i]) * fading);
+            }
         }
     }
     Ok(rows)
+}
+
+/// The stacked Stribeck columns as (fitted, applied) pairs per velocity.
+fn stribeck_pairs(mut columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
+    let applied = columns.split_off(columns.len() / 2);
+    columns
+        .into_iter()
+        .zip(applied)
+        .map(|(f, a)| (DVector::from_vec(f), DVector::from_vec(a)))
+        .collect()
 }
 
 /// The model's Coulomb friction level of each joint (its regressor

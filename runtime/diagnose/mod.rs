@@ -85,6 +85,7 @@ mod fit;
 mod identify;
 pub mod plots;
 mod report;
+mod search;
 mod select;
 mod text;
 mod unexplained;
@@ -132,6 +133,13 @@ pub enum Kind {
     /// Direction-dependent dry friction: `asymmetry` N m added while the
     /// joint moves either way (levels coulomb +- asymmetry).
     CoulombAsymmetry,
+    /// Stribeck friction: breakaway friction `excess` N m above the sliding
+    /// level, fading past the Stribeck `velocity` (rad/s, chosen on a grid).
+    StribeckFriction,
+    /// Torque ripple of the position (cogging, gear or sensor harmonics):
+    /// `sin` and `cos` amplitudes (N m) of the harmonic with `cycles`
+    /// periods per joint revolution (chosen from the data).
+    TorqueRipple,
 }
 
 impl Kind {
@@ -241,6 +249,10 @@ pub struct Settings {
     /// Cross-validation segments per recording; `None` chooses them (see
     /// [`data::segment_counts`]).
     pub segments: Option<usize>,
+    /// Whether Stribeck friction competes (off by default: its signature,
+    /// confined to velocity reversals, is confounded with the stick-slip
+    /// of plain dry friction; docs/diagnosis.md).
+    pub stribeck: bool,
 }
 
 /// Shortest total duration diagnosed, s: two cross-validation segments of
@@ -266,8 +278,89 @@ impl Default for Settings {
             reach: f64::INFINITY,
             com_resolution: 0.05,
             segments: None,
+            stribeck: false,
         }
     }
+}
+
+/// Drops, one at a time, a named effect that removes no held-out error
+/// from its joints once applied (the generated model's columns, counted in
+/// selection order): selection scores the fitted columns, and an effect at
+/// the noise floor can pass it yet make the applied model no better.
+fn drop_unhelpful(
+    m: &Moments,
+    candidates: &[candidate::Candidate],
+    selected: &mut Vec<usize>,
+    notes: &mut Vec<String>,
+) {
+    while let Some(position) = report::heldout_removals(m, candidates, selected)
+        .iter()
+        .position(|&(removed, _)| removed <= 0.0)
+    {
+        let dropped = selected.remove(position);
+        notes.push(format!(
+            "{}: significant in the fit, but once applied it removes no held-out error from its \
+             joints; dropped",
+            select::label(&candidates[dropped])
+        ));
+    }
+}
+
+/// A torque offset and direction-dependent dry friction are the same torque
+/// while the joint moves; only samples at rest tell them apart. Where one
+/// is named on a joint with dry friction, a note says how many samples
+/// could tell (the other reading is as plausible when few rest).
+fn offset_or_asymmetry(
+    data: &data::Stacked,
+    candidates: &[candidate::Candidate],
+    selected: &[usize],
+) -> Vec<String> {
+    let named = |kind: Kind, j: usize| {
+        selected
+            .iter()
+            .any(|&c| candidates[c].kind == kind && candidates[c].joint == Some(j))
+    };
+    let mut notes = Vec::new();
+    for j in 0..data.dof {
+        let (offset, asymmetry) = (
+            named(Kind::TorqueOffset, j),
+            named(Kind::CoulombAsymmetry, j),
+        );
+        let dry = candidates
+            .iter()
+            .find(|c| c.kind == Kind::CoulombAsymmetry && c.joint == Some(j));
+        let Some(dry) = dry else { continue };
+        let modelled =
+            matches!(dry.shape, Shape::Asymmetry { modelled_coulomb } if modelled_coulomb > 0.0);
+        if offset == asymmetry || !(modelled || named(Kind::CoulombFriction, j)) {
+            continue;
+        }
+        // The asymmetry's column is 1 while moving, 0 at rest (filtered).
+        let rows = (j..data.residual.len()).step_by(data.dof);
+        let count = rows.clone().count().max(1) as f64;
+        let resting = rows.filter(|&r| dry.columns[0][r] < 0.5).count() as f64 / count;
+        let (this, other) = if offset {
+            (
+                "a torque offset",
+                "direction-dependent dry friction (coulomb_asymmetry)",
+            )
+        } else {
+            ("direction-dependent dry friction", "a torque offset")
+        };
+        notes.push(format!(
+            "joint {}: {this} and {other} are the same torque while the joint moves; only the \
+             {:.0}% of samples at rest tell them apart, so {other} fits these data {}: record \
+             motions that rest to tell",
+            j + 1,
+            100.0 * resting,
+            if resting < 0.2 {
+                "almost as well"
+            } else {
+                "less well"
+            }
+        ));
+    }
+    notes
 }
 
 /// Fits the first moment alone (the mass held as modelled) for these body
@@ -291,6 +384,9 @@ fn hold_mass(candidates: &mut [candidate::Candidate], which: &[usize]) {
 }
 
 /// Diagnoses `model` on raw recordings, preprocessed by `pipeline`.
+/// Most moving joints a diagnosed model may have.
+pub const MAX_DOF: usize = 32;
+
 pub fn diagnose(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
@@ -298,10 +394,19 @@ pub fn diagnose(
     settings: Settings,
 ) -> anyhow::Result<Diagnosis> {
     reject_duplicates(recordings)?;
+    if model.dof() > MAX_DOF {
+        anyhow::bail!(
+            "model `{}` has {} moving joints; the diagnosis handles up to {MAX_DOF} (its \
+             candidates grow with the square of the joints): lock the joints the recordings do \
+             not move (`locked = ANGLE` in the description)",
+            model.name(),
+            model.dof()
+        );
+    }
     let size = Some(reach(model))
         .filter(|r| r.is_finite() && *r > 0.0)
         .unwrap_or(1.0);
-    let (data, mut candidates, layout) = stack(model, recordings, pipeline, settings.segments)?;
+    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings)?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(
@@ -330,7 +435,9 @@ pub fn diagnose(
         second_moments.retain(|c| !retry.contains(c));
         selection = select(&moments, data.dof, &candidates, settings);
     }
-    let (selected, mut notes) = (selection.selected, selection.notes);
+    let (mut selected, mut notes) = (selection.selected, selection.notes);
+    drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
+    notes.extend(offset_or_asymmetry(&data, &candidates, &selected));
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = fit::cv_mse(

@@ -54,32 +54,48 @@ pub(super) fn describe(
     let Some((fit, se)) = fit_robust(m, candidates, selected) else {
         return Vec::new();
     };
-    let dof = m.xx.first().map_or(0, Vec::len);
-    let mut previous = cv_mse_per_joint(m, dof, candidates, &[]);
-    let before = previous.clone();
+    let removals = heldout_removals(m, candidates, selected);
     let mut offset = 0;
     let mut effects = Vec::new();
-    for (position, &c) in selected.iter().enumerate() {
+    for (&c, (removed, of)) in selected.iter().zip(removals) {
         let candidate = &candidates[c];
         let w = width(candidate);
         let values: Vec<(f64, f64)> = (offset..offset + w)
             .map(|k| (fit.theta[k], 1.96 * se[k]))
             .collect();
         offset += w;
-        let now = cv_mse_per_joint(m, dof, candidates, &selected[..=position]);
-        let joints: Vec<usize> = match candidate.joint {
-            Some(j) => vec![j],
-            None => (0..dof).collect(),
-        };
-        let removed: f64 = joints.iter().map(|&j| previous[j] - now[j]).sum();
-        let of: f64 = joints.iter().map(|&j| before[j]).sum();
-        previous = now;
         let mut effect = effect(candidate, &values, resolution, notes);
         effect.heldout_mse_removed = removed;
         effect.heldout_share = (removed / of.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
         effects.push(effect);
     }
     effects
+}
+
+/// Per selected effect, in selection order, the held-out MSE it removes
+/// from its joints (all joints for a link or data effect) with the
+/// generated model's columns, and those joints' MSE before the diagnosis.
+pub(super) fn heldout_removals(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+) -> Vec<(f64, f64)> {
+    let dof = m.xx.first().map_or(0, Vec::len);
+    let mut previous = cv_mse_per_joint(m, dof, candidates, &[]);
+    let before = previous.clone();
+    (0..selected.len())
+        .map(|position| {
+            let now = cv_mse_per_joint(m, dof, candidates, &selected[..=position]);
+            let joints: Vec<usize> = match candidates[selected[position]].joint {
+                Some(j) => vec![j],
+                None => (0..dof).collect(),
+            };
+            let removed: f64 = joints.iter().map(|&j| previous[j] - now[j]).sum();
+            let of: f64 = joints.iter().map(|&j| before[j]).sum();
+            previous = now;
+            (removed, of)
+        })
+        .collect()
 }
 
 /// A fitted mass whose 95% half-width exceeds this fraction of it gets a
@@ -214,6 +230,10 @@ pub(super) fn effect(
         for (name, (value, half)) in candidate.names.iter().zip(values) {
             parameters.insert((*name).into(), json!(value));
             ci95.insert((*name).into(), json!([value - half, value + half]));
+        }
+        // Chosen from the data before the fit: no interval of their own.
+        for (name, value) in &candidate.settings {
+            parameters.insert((*name).into(), json!(value));
         }
         data_correction(candidate, values, &mut parameters, &mut ci95);
     }

@@ -68,12 +68,61 @@ pub(super) fn mass_identifiable(
 }
 
 /// Largest relative drop of any joint's MSE from `before` to `after`.
-pub(super) fn relative_gain(before: &[f64], after: &[f64]) -> f64 {
+pub(super) fn relative_gain(before: &[f64], after: &[f64], initial: &[f64]) -> Gain {
     before
         .iter()
         .zip(after)
-        .map(|(b, a)| if *b > 0.0 { (b - a) / b } else { 0.0 })
-        .fold(f64::NEG_INFINITY, f64::max)
+        .zip(initial)
+        .enumerate()
+        .map(|(joint, ((b, a), i))| {
+            // A drop below GAIN_FLOOR of the joint's error before the
+            // diagnosis is noise-level structure, however large a share of
+            // what is left it is.
+            let share = if *b > 0.0 && b - a >= GAIN_FLOOR * i {
+                (b - a) / b
+            } else {
+                0.0
+            };
+            Gain { share, joint }
+        })
+        .fold(
+            Gain {
+                share: f64::NEG_INFINITY,
+                joint: 0,
+            },
+            |best, g| {
+                if g.share > best.share { g } else { best }
+            },
+        )
+}
+
+/// The least held-out MSE an effect must remove from a joint, as a share of
+/// that joint's held-out MSE before the diagnosis.
+pub const GAIN_FLOOR: f64 = 1e-3;
+
+/// A candidate's held-out gain: the largest share of a joint's current
+/// held-out MSE it removes, and that joint.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Gain {
+    pub(super) share: f64,
+    pub(super) joint: usize,
+}
+
+impl Gain {
+    /// No gain (the backward check asks only whether a fit is physical).
+    pub(super) const NONE: Gain = Gain {
+        share: 0.0,
+        joint: 0,
+    };
+
+    /// "would cut joint 2's held-out MSE by 76%".
+    pub(super) fn would_cut(&self) -> String {
+        format!(
+            "would cut joint {}'s held-out MSE by {:.0}%",
+            self.joint + 1,
+            100.0 * self.share
+        )
+    }
 }
 
 /// Forward selection by cross-validated MSE with a significance check: each
@@ -98,7 +147,8 @@ pub(super) fn select(
             })
         })
         .collect();
-    let mut current = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
+    let initial = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
+    let mut current = initial.clone();
     loop {
         let best = (0..candidates.len())
             .filter(|c| {
@@ -111,14 +161,14 @@ pub(super) fn select(
                 let mut trial = selected.clone();
                 trial.push(c);
                 let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-                (c, relative_gain(&current, &mse), mse)
+                (c, relative_gain(&current, &mse, &initial), mse)
             })
-            .filter(|(_, gain, _)| gain.is_finite())
-            .max_by(|a, b| a.1.total_cmp(&b.1));
+            .filter(|(_, gain, _)| gain.share.is_finite())
+            .max_by(|a, b| a.1.share.total_cmp(&b.1.share));
         let Some((c, gain, mse)) = best else { break };
         let mut trial = selected.clone();
         trial.push(c);
-        if gain < settings.min_gain {
+        if gain.share < settings.min_gain {
             break;
         }
         let Some(full) = fit(m, candidates, &trial, |_| true) else {
@@ -128,10 +178,10 @@ pub(super) fn select(
         let w = width(&candidates[c]);
         if identifiability(&full.information, offset..offset + w) < COLLINEAR {
             notes.push(format!(
-                "{}: would cut a joint's held-out MSE by {:.0}%, but its parameters are collinear \
-                 with the effects already named ({}); not named",
+                "{}: {} at this step, but its parameters are collinear with the effects \
+                 already named ({}); not named",
                 label(&candidates[c]),
-                100.0 * gain,
+                gain.would_cut(),
                 selected
                     .iter()
                     .map(|&s| label(&candidates[s]))
@@ -146,11 +196,11 @@ pub(super) fn select(
         // the others compete.
         let Some(values) = significant(m, candidates, &trial, &full, settings.min_t) else {
             notes.push(format!(
-                "{}: would cut a joint's held-out MSE by {:.0}%, but its parameters are not \
-                 significant (|t| <= {}); not named",
+                "{}: {} at this step, but its parameters are not significant (|t| <= {:.1}); \
+                 not named",
                 label(&candidates[c]),
-                100.0 * gain,
-                settings.min_t
+                gain.would_cut(),
+                searched_threshold(settings.min_t, candidates[c].searched)
             ));
             refused.push(c);
             continue;
@@ -171,16 +221,17 @@ pub(super) fn select(
         let gain = relative_gain(
             &current,
             &cv_mse(m, dof, candidates, &trial, Scoring::Fitted),
+            &initial,
         );
-        if gain >= settings.min_gain {
+        if gain.share >= settings.min_gain {
             notes.push(format!(
-                "{}: would cut a joint's held-out MSE by {:.0}%, but these data cannot identify \
+                "{}: {}, but these data cannot identify \
                  its parameters (they act only through a combination of them, e.g. a base \
                  parameter: only the inertia about the first joint's axis matters for the first \
                  link); not named — record motions that excite it, or look for an effect with \
                  the same signature",
                 label(&candidates[c]),
-                100.0 * gain
+                gain.would_cut()
             ));
         }
     }
@@ -223,7 +274,9 @@ pub(super) fn prune(
                 return true;
             };
             match significant(m, candidates, &trial, &full, settings.min_t) {
-                Some(values) => physical(&candidates[c], &values, 0.0, settings.reach).is_err(),
+                Some(values) => {
+                    physical(&candidates[c], &values, Gain::NONE, settings.reach).is_err()
+                }
                 None => true,
             }
         });
@@ -272,7 +325,7 @@ pub(super) fn label(candidate: &Candidate) -> String {
 pub(super) fn physical(
     candidate: &Candidate,
     values: &[f64],
-    gain: f64,
+    gain: Gain,
     reach: f64,
 ) -> Result<(), String> {
     let at = match (&candidate.joint, &candidate.link) {
@@ -282,12 +335,12 @@ pub(super) fn physical(
         }
         _ => "the last link".to_string(),
     };
-    let percent = 100.0 * gain;
+    let cut = gain.would_cut();
     let value = values[0];
     let meaning = match candidate.kind {
-        Kind::TorqueOffset | Kind::CoulombAsymmetry => return Ok(()),
+        Kind::TorqueOffset | Kind::CoulombAsymmetry | Kind::TorqueRipple => return Ok(()),
         Kind::TorqueScale | Kind::TorqueDelay | Kind::GravityDirection => {
-            return plausible_data_effect(candidate, values, &at, percent);
+            return plausible_data_effect(candidate, values, &at, &cut);
         }
         Kind::InertialError if matches!(candidate.shape, Shape::Moment { .. }) => {
             let Shape::Moment { base_mass, .. } = candidate.shape else {
@@ -300,8 +353,7 @@ pub(super) fn physical(
             return Err(format!(
                 "{at}: the data fit a first moment that puts the centre of mass {distance:.2} m \
                  from the link origin at the modelled mass {base_mass:.4} kg (the arm's size is \
-                 {reach:.2} m): not a physical body; not named (it would cut a joint's held-out \
-                 MSE by {percent:.0}%)"
+                 {reach:.2} m): not a physical body; not named (it {cut})"
             ));
         }
         Kind::InertialError => {
@@ -316,7 +368,7 @@ pub(super) fn physical(
                     "{at}: the data fit a mass of {value:.4} kg for a link modelled at \
                      {modelled:.4} kg, beyond a factor of {MASS_FACTOR}: not a plausible \
                      correction of this link but the trace of another effect (an armature, a \
-                     payload); not named (it would cut a joint's held-out MSE by {percent:.0}%)"
+                     payload); not named (it {cut})"
                 ));
             }
             if value > 0.0 && distance <= reach {
@@ -325,7 +377,7 @@ pub(super) fn physical(
             return Err(format!(
                 "{at}: the data fit a mass of {value:.4} kg with its centre of mass {distance:.2} m \
                  from the link origin (the arm's size is {reach:.2} m): not a physical body; not \
-                 named (it would cut a joint's held-out MSE by {percent:.0}%)"
+                 named (it {cut})"
             ));
         }
         _ if value <= 0.0 => match candidate.kind {
@@ -342,6 +394,10 @@ pub(super) fn physical(
                 "torque that pushes the joint away from a rest angle is not a spring (a link \
                  modelled too light about this joint?)"
             }
+            Kind::StribeckFriction => {
+                "friction that grows with speed past rest: not a Stribeck breakaway (a \
+                 Coulomb level set too high?)"
+            }
             _ => "the last link is lighter than modelled (an inertial error, not a payload)",
         },
         Kind::Payload => {
@@ -354,7 +410,7 @@ pub(super) fn physical(
                 "{at}: the data fit a mass of only {value:.4} kg with its centre of mass at \
                  [{:.3}, {:.3}, {:.3}] m, {distance:.2} m away, beyond the arm's reach \
                  ({reach:.2} m): a first-moment change, i.e. an inertial error of the last link, \
-                 not a payload; not named (it would cut a joint's held-out MSE by {percent:.0}%)",
+                 not a payload; not named (it {cut})",
                 com[0], com[1], com[2]
             ));
         }
@@ -362,8 +418,8 @@ pub(super) fn physical(
     };
     let kind = candidate.kind.name();
     Err(format!(
-        "{at}: the data fit {kind} = {value:.4}, a negative value (it would cut a joint's \
-         held-out MSE by {percent:.0}%): {meaning}; not named"
+        "{at}: the data fit {kind} = {value:.4}, a negative value (it {cut}): {meaning}; \
+         not named"
     ))
 }
 
@@ -378,7 +434,7 @@ fn plausible_data_effect(
     candidate: &Candidate,
     values: &[f64],
     at: &str,
-    percent: f64,
+    cut: &str,
 ) -> Result<(), String> {
     let (size, limit, what) = match candidate.kind {
         Kind::TorqueScale => (
@@ -390,12 +446,13 @@ fn plausible_data_effect(
             let Shape::Delay { sample_period } = candidate.shape else {
                 return Ok(());
             };
-            if values[0].abs() <= sample_period {
+            // A torque read early by up to a sample is the logging
+            // convention; a late one is a delay, however short.
+            if (-sample_period..=0.0).contains(&values[0]) {
                 return Err(format!(
-                    "all joints: the data fit a torque delay of {:.2} ms, within one sample \
-                     period ({:.2} ms): the logging convention (a torque held over the sample \
-                     interval reads half a sample early), not a delay; not named (it would cut a \
-                     joint's held-out MSE by {percent:.0}%)",
+                    "all joints: the data fit a torque delay of {:.2} ms, early by at most one \
+                     sample period ({:.2} ms): the logging convention (a torque held over the \
+                     sample interval reads half a sample early), not a delay; not named (it {cut})",
                     1e3 * values[0],
                     1e3 * sample_period
                 ));
@@ -424,7 +481,7 @@ fn plausible_data_effect(
     };
     Err(format!(
         "{place}: the data fit {what} of {size:.3}, beyond the plausible {limit}: the trace of \
-         another effect; not named (it would cut a joint's held-out MSE by {percent:.0}%)"
+         another effect; not named (it {cut})"
     ))
 }
 
@@ -451,12 +508,14 @@ pub(super) fn significant(
         .sum();
     let w = width(&candidates[added]);
     let candidate = &candidates[added];
+    let min_t = searched_threshold(min_t, candidate.searched);
     let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
     let ok = match (&candidate.kind, &candidate.shape) {
         (Kind::Payload, _) => t(0, 0.0) > min_t,
-        // A tilt may be about one axis only; a spring's constant (its rest
-        // angle times its stiffness) may well be zero.
-        (Kind::GravityDirection, _) => (0..w).any(|k| t(k, 0.0) > min_t),
+        // A tilt may be about one axis only, a ripple's phase anything; a
+        // spring's constant (its rest angle times its stiffness) may well
+        // be zero.
+        (Kind::GravityDirection | Kind::TorqueRipple, _) => (0..w).any(|k| t(k, 0.0) > min_t),
         (Kind::JointSpring, _) => t(0, 0.0) > min_t,
         (
             Kind::InertialError,
@@ -491,6 +550,14 @@ pub(super) fn significant(
     ok.then(|| theta.rows(offset, w).iter().copied().collect())
 }
 
+/// The |t| a candidate chosen among `searched` column shapes must pass:
+/// sqrt(min_t^2 + 2 ln searched), close to a Bonferroni correction of the
+/// normal tail (3 -> 4.0 for 50 shapes), so the best of many shapes fitted
+/// to noise is not named.
+pub(super) fn searched_threshold(min_t: f64, searched: usize) -> f64 {
+    (min_t * min_t + 2.0 * (searched.max(1) as f64).ln()).sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -506,29 +573,35 @@ mod tests {
             columns: vec![],
             applied: None,
             shape: Shape::Linear,
+            settings: Vec::new(),
+            searched: 1,
         }
+    }
+
+    fn gain(share: f64) -> Gain {
+        Gain { share, joint: 0 }
     }
 
     #[test]
     fn impossible_signs_become_notes() {
         let armature = candidate(Kind::Armature, Some(3));
-        let note = physical(&armature, &[-0.1], 0.15, 1.0).unwrap_err();
+        let note = physical(&armature, &[-0.1], gain(0.15), 1.0).unwrap_err();
         assert!(
             note.starts_with("joint 4:") && note.contains("inertia"),
             "{note}"
         );
-        assert!(physical(&armature, &[0.1], 0.15, 1.0).is_ok());
+        assert!(physical(&armature, &[0.1], gain(0.15), 1.0).is_ok());
         let offset = candidate(Kind::TorqueOffset, Some(0));
-        assert!(physical(&offset, &[-0.3], 0.5, 1.0).is_ok());
+        assert!(physical(&offset, &[-0.3], gain(0.5), 1.0).is_ok());
     }
 
     #[test]
     fn a_payload_beyond_the_arm_is_a_note() {
         let payload = candidate(Kind::Payload, None);
         // 0.5 kg at 0.1 m: a payload.
-        assert!(physical(&payload, &[0.5, 0.0, 0.0, 0.05], 0.3, 1.0).is_ok());
+        assert!(physical(&payload, &[0.5, 0.0, 0.0, 0.05], gain(0.3), 1.0).is_ok());
         // 7 g at 1.7 m (a first moment of 0.012 kg m): beyond the arm.
-        let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], 0.3, 1.0).unwrap_err();
+        let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], gain(0.3), 1.0).unwrap_err();
         assert!(note.contains("first-moment"), "{note}");
     }
 }

@@ -24,6 +24,11 @@ pub const UNEXPLAINED_GAIN: f64 = 0.2;
 /// Residual RMS (N m) below which a joint's residual is taken as exact.
 pub const QUIET: f64 = 1e-6;
 
+/// The predictable part's RMS, as a share of the joint's measured torque
+/// RMS, below which it is not reported: structure that small (a
+/// half-sample logging convention on an exact model) is no missing effect.
+pub const MEASURABLE: f64 = 0.005;
+
 /// Structure left on one joint.
 #[derive(Debug, Clone, Serialize)]
 pub struct Unexplained {
@@ -71,7 +76,8 @@ pub(super) fn unexplained(
             }
             let share = |features: &[usize]| 1.0 - cv_sse(data, after, j, features) / total;
             let predictable = share(&all);
-            if predictable < UNEXPLAINED_GAIN {
+            let torque: f64 = rows(data, j).map(|r| data.measured[r].powi(2)).sum();
+            if predictable < UNEXPLAINED_GAIN || predictable * total < (MEASURABLE * MEASURABLE) * torque {
                 return None;
             }
             let mut by_regime: Vec<RegimeShare> = regimes

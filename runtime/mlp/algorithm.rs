@@ -348,7 +348,7 @@ pub(crate) fn split_rows(
     ids.dedup();
     if ids.len() < 2 {
         return Err(TrainError::Split(format!(
-            "splitting by groups needs at least 2 groups, found {}",
+            "splitting by groups needs at least 2 groups (recordings), found {}: pass at least 2 recordings",
             ids.len()
         )));
     }
@@ -613,7 +613,8 @@ mod tests {
     fn group_split_needs_two_groups() {
         let err = split_rows(&data_with_groups(vec![4; 5]), 0.3, &mut rng(0, 0)).unwrap_err();
         assert!(
-            err.to_string().contains("at least 2 groups, found 1"),
+            err.to_string()
+                .contains("at least 2 groups (recordings), found 1"),
             "{err}"
         );
     }

@@ -36,6 +36,12 @@ pub enum TrainError {
         col: usize,
         value: f64,
     },
+    /// The network's output overflowed on an input.
+    #[error(
+        "the network's output is not finite at sample {row} (0-based): its weights overflow on \
+         this input (no trained network does; check the network file)"
+    )]
+    NonFinitePrediction { row: usize },
     /// The validation set cannot be split off as asked.
     #[error("cannot split off a validation set: {0}")]
     Split(String),

@@ -270,9 +270,13 @@ impl Mlp {
             });
         }
         let x = self.input.standardize(inputs);
-        Ok(self
+        let y = self
             .output
-            .restore(algorithm::forward(&self.layers, self.activation, &x)))
+            .restore(algorithm::forward(&self.layers, self.activation, &x));
+        match (0..y.nrows()).find(|&r| y.row(r).iter().any(|v| !v.is_finite())) {
+            Some(row) => Err(TrainError::NonFinitePrediction { row }),
+            None => Ok(y),
+        }
     }
 
     /// Predicts one sample.

@@ -36,6 +36,16 @@ pub enum PreprocessError {
         "low-pass cut-off {cutoff_hz} Hz must be positive and below the Nyquist frequency {nyquist_hz} Hz of the data"
     )]
     InvalidCutoff { cutoff_hz: f64, nyquist_hz: f64 },
+    /// A cut-off too low for the recordings' length.
+    #[error(
+        "low-pass cut-off {cutoff_hz} Hz is too low for a {seconds:.2} s recording: it needs a \
+         cut-off of at least {lowest_hz:.3} Hz (four periods in the shortest recording)"
+    )]
+    CutoffTooLow {
+        cutoff_hz: f64,
+        lowest_hz: f64,
+        seconds: f64,
+    },
     /// A decimated rate too low for the cut-off.
     #[error(
         "decimated rate {rate_hz} Hz must be at least twice the low-pass cut-off ({cutoff_hz} Hz)"

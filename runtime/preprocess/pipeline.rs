@@ -47,6 +47,10 @@ pub struct Pipeline {
     pub settings: Preprocess,
 }
 
+/// Periods of the cut-off frequency the shortest recording must span: a
+/// filter slower than that returns its own transient, not the data.
+const MIN_PERIODS: f64 = 4.0;
+
 impl Pipeline {
     /// The auto preset on `recordings` (raw), with an optional cut-off and
     /// decimated rate in Hz replacing the chosen ones.
@@ -62,6 +66,18 @@ impl Pipeline {
                 return Err(PreprocessError::InvalidCutoff {
                     cutoff_hz: cutoff,
                     nyquist_hz: nyquist,
+                });
+            }
+            let shortest = recordings
+                .iter()
+                .map(|r| r.t()[r.len() - 1] - r.t()[0])
+                .fold(f64::INFINITY, f64::min);
+            let lowest = MIN_PERIODS / shortest;
+            if cutoff < lowest {
+                return Err(PreprocessError::CutoffTooLow {
+                    cutoff_hz: cutoff,
+                    lowest_hz: lowest,
+                    seconds: shortest,
                 });
             }
             choice.cutoff_hz = cutoff;

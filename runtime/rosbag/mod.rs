@@ -27,7 +27,8 @@ pub const CDR_ENCODING: &str = "cdr";
 pub struct JointStates {
     /// Names, in the selected order.
     pub joints: Vec<String>,
-    /// Seconds from the first kept message (header stamp; log time if the stamp is zero).
+    /// Seconds from the first kept message (header stamps; the log times
+    /// when no message of the bag has a stamp set).
     pub t: Vec<f64>,
     /// `[sample][joint]`.
     pub position: Vec<Vec<f64>>,
@@ -234,6 +235,12 @@ pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointState
         velocity: Vec::with_capacity(n),
         effort: Vec::with_capacity(n),
     };
+    // One clock for the whole bag: the header stamps when any is set (a
+    // simulation clock may start at exactly zero), else the log times.
+    let stamped = raw
+        .iter()
+        .enumerate()
+        .any(|(index, (_, data))| decode(index, data).is_ok_and(|m| m.sec != 0 || m.nanosec != 0));
     let mut t0 = None;
     let mut previous: Option<i128> = None;
     for (index, (log_time, data)) in raw.iter().enumerate() {
@@ -300,10 +307,10 @@ pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointState
         }
 
         // Integer nanoseconds so that the ordering check is exact.
-        let ns = if msg.sec == 0 && msg.nanosec == 0 {
-            i128::from(*log_time)
-        } else {
+        let ns = if stamped {
             i128::from(msg.sec) * 1_000_000_000 + i128::from(msg.nanosec)
+        } else {
+            i128::from(*log_time)
         };
         let t0 = *t0.get_or_insert(ns);
         let seconds = |ns: i128| (ns - t0) as f64 / 1e9;

@@ -433,6 +433,18 @@ fn zero_stamps_fall_back_to_log_time() {
 }
 
 #[test]
+fn a_simulation_clock_starting_at_zero_is_one_clock() {
+    // Header stamps 0, 0.01, 0.02 s; log times of the wall clock.
+    let mut msgs: Vec<_> = (0..3).map(|i| sample(i, &J3)).collect();
+    for (i, m) in msgs.iter_mut().enumerate() {
+        (m.sec, m.nanosec) = (0, i as u32 * 10_000_000);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let js = read(&bag_of(dir.path(), &msgs), None, None).unwrap();
+    assert_eq!(js.t, vec![0.0, 0.01, 0.02]);
+}
+
+#[test]
 fn non_finite_values_and_short_bags() {
     let mut msgs = vec![sample(0, &J3), sample(1, &J3)];
     msgs[1].velocity[1] = f64::NAN;

@@ -18,6 +18,7 @@ use nalgebra::Vector3;
 use super::V3;
 use crate::program::{Dag, NodeId};
 use crate::reduce::{Body, Chain};
+use crate::schema::EFFECTS_PER_JOINT;
 
 /// Rotation entries closer than this to 0 or +-1 are taken as exact.
 pub const SNAP: f64 = 1e-15;
@@ -50,9 +51,8 @@ pub struct JointLeaves {
     pub translation: V3,
     pub rotation: [V3; 3],
     pub axis: V3,
-    /// armature, viscous, coulomb, offset, coulomb_asymmetry, spring (the
-    /// order of `JointEffects::parameters`).
-    pub effects: [NodeId; 6],
+    /// The effect parameters in the order of `JointEffects::parameters`.
+    pub effects: [NodeId; EFFECTS_PER_JOINT],
     /// The spring's rest angle.
     pub spring_rest: NodeId,
 }
@@ -164,11 +164,17 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         )
     });
     let spring_rest = named(dag, format!("JOINT{i}_SPRING_REST"), e.spring_rest, false);
+    // Used by the generated prologue (the Stribeck and ripple inputs), not
+    // in the programs.
+    named(dag, stribeck_velocity(i), e.stribeck_velocity, false);
+    named(dag, ripple_cycles(i), e.ripple_cycles, false);
     let doc = format!(
         "Joint {i} ({:?}): origin in the previous link's axes (m), rotation of its \
          frame (entries within 1e-15 of 0 or +-1 made exact), unit axis; armature \
          (kg m^2), viscous (N m s/rad), Coulomb (N m), offset (N m), Coulomb \
-         asymmetry (N m), spring (N m/rad) and its rest angle (rad).",
+         asymmetry (N m), spring (N m/rad), Stribeck excess (N m), ripple sine and \
+         cosine amplitudes (N m); the spring's rest angle (rad), the Stribeck \
+         velocity (rad/s) and the ripple's periods per revolution.",
         body.joint
     );
     let leaves = JointLeaves {
@@ -179,6 +185,16 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         spring_rest,
     };
     (Group { doc, items }, leaves)
+}
+
+/// The name of joint `i`'s (1-based) Stribeck velocity constant.
+pub fn stribeck_velocity(i: usize) -> String {
+    format!("JOINT{i}_STRIBECK_VELOCITY")
+}
+
+/// The name of joint `i`'s (1-based) ripple-cycles constant.
+pub fn ripple_cycles(i: usize) -> String {
+    format!("JOINT{i}_RIPPLE_CYCLES")
 }
 
 /// The description group of link `i`, its standard-parameter group and

@@ -3,7 +3,7 @@
 
 use super::newton_euler::{Motion, Rotation};
 use super::regroup::BodyParameters;
-use super::{QD, QDD, SIGN, Tracer, V3};
+use super::{QD, QDD, RIPPLE_COS, RIPPLE_SIN, SIGN, STRIBECK, Tracer, V3};
 use crate::program::NodeId;
 use crate::schema::{EFFECTS_PER_JOINT, PARAMETERS_PER_JOINT};
 
@@ -102,6 +102,9 @@ impl Tracer<'_> {
             y[row + 3] = one;
             y[row + 4] = self.dag.product2(sign, sign);
             y[row + 5] = self.spring_stretch(i);
+            y[row + 6] = self.input(i, STRIBECK);
+            y[row + 7] = self.input(i, RIPPLE_SIN);
+            y[row + 8] = self.input(i, RIPPLE_COS);
         }
         y
     }

@@ -24,7 +24,7 @@ mod regroup;
 #[cfg(test)]
 mod tests;
 
-pub use constants::{Definition, Group, SNAP};
+pub use constants::{Definition, Group, SNAP, ripple_cycles, stribeck_velocity};
 
 use crate::program::{Dag, NodeId};
 use crate::reduce::Chain;
@@ -33,14 +33,18 @@ use newton_euler::{JointState, Rotation};
 use regroup::BodyParameters;
 
 /// Program input positions; the layout of `lagrangian::inputs`:
-/// per joint sin, cos, qd, qdd, sign(qd), q.
-pub const INPUTS_PER_JOINT: usize = 6;
+/// per joint sin, cos, qd, qdd, sign(qd), q, the Stribeck shape
+/// sign(qd) exp(-(qd/v_s)^2), and sin and cos of the ripple's angle.
+pub const INPUTS_PER_JOINT: usize = 9;
 const SIN: usize = 0;
 const COS: usize = 1;
 const QD: usize = 2;
 const QDD: usize = 3;
 const SIGN: usize = 4;
 const Q: usize = 5;
+const STRIBECK: usize = 6;
+const RIPPLE_SIN: usize = 7;
+const RIPPLE_COS: usize = 8;
 
 type V3 = [NodeId; 3];
 
@@ -55,10 +59,10 @@ pub struct Traced {
     pub mass_matrix: Vec<NodeId>,
     pub gravity: Vec<NodeId>,
     pub coriolis: Vec<NodeId>,
-    /// viscous qd + coulomb sign(qd) + coulomb_asymmetry |sign(qd)| + offset
-    /// per joint.
+    /// viscous qd + coulomb sign(qd) + coulomb_asymmetry |sign(qd)| +
+    /// stribeck sign(qd) exp(-(qd/v_s)^2) + offset per joint.
     pub effects: Vec<NodeId>,
-    /// n x 16n: ten inertial columns per body, then six effect columns per
+    /// n x 19n: ten inertial columns per body, then nine effect columns per
     /// joint.
     pub regressor: Vec<NodeId>,
 }
@@ -101,9 +105,9 @@ pub fn trace(chain: &Chain) -> Traced {
     let tau = (0..n)
         .map(|i| {
             let effects = t.effects(i, true);
-            let spring = t.spring(i);
+            let position = t.position_torque(i);
             let with_effects = t.dag.sum2(rigid[i], effects);
-            t.dag.sum2(with_effects, spring)
+            t.dag.sum2(with_effects, position)
         })
         .collect();
     let rest = t.forward(&rotations, &at_rest, base_acceleration);
@@ -112,8 +116,8 @@ pub fn trace(chain: &Chain) -> Traced {
         .into_iter()
         .enumerate()
         .map(|(i, g)| {
-            let spring = t.spring(i);
-            t.dag.sum2(g, spring)
+            let position = t.position_torque(i);
+            t.dag.sum2(g, position)
         })
         .collect();
     let moving = t.forward(&rotations, &no_acceleration, gravity_off);

@@ -1,7 +1,7 @@
 //! tau, gravity and Coriolis by the recursive Newton-Euler form: joint
 //! rotations, motions outwards from the base, wrenches inwards from the tip.
 
-use super::{COS, Q, QD, QDD, SIGN, SIN, Tracer, V3, constants};
+use super::{COS, Q, QD, QDD, RIPPLE_COS, RIPPLE_SIN, SIGN, SIN, STRIBECK, Tracer, V3, constants};
 use crate::program::{Dag, NodeId};
 
 /// A joint rotation as a product of stages (rows each), parent-most first.
@@ -241,9 +241,19 @@ impl Tracer<'_> {
     }
 
     /// armature*qdd (optional) + viscous*qd + coulomb*sign(qd) +
-    /// coulomb_asymmetry*sign(qd)^2 + offset.
+    /// coulomb_asymmetry*sign(qd)^2 + stribeck*stribeck_shape + offset.
     pub(super) fn effects(&mut self, i: usize, with_armature: bool) -> NodeId {
-        let [armature, viscous, coulomb, offset, asymmetry, _] = self.joint(i).effects;
+        let [
+            armature,
+            viscous,
+            coulomb,
+            offset,
+            asymmetry,
+            _,
+            stribeck,
+            _,
+            _,
+        ] = self.joint(i).effects;
         let zero = self.dag.constant(0.0);
         let armature = if with_armature { armature } else { zero };
         let sign = self.input(i, SIGN);
@@ -253,17 +263,26 @@ impl Tracer<'_> {
             (viscous, self.input(i, QD)),
             (coulomb, sign),
             (asymmetry, moving),
+            (stribeck, self.input(i, STRIBECK)),
         ]
         .map(|(k, x)| self.dag.product2(k, x));
         let sum = self.sum(&terms);
         self.dag.sum2(sum, offset)
     }
 
-    /// The joint spring's torque spring*(q - spring_rest).
-    pub(super) fn spring(&mut self, i: usize) -> NodeId {
+    /// The torque of the position alone: the joint spring
+    /// spring*(q - spring_rest) and the ripple
+    /// ripple_sin*sin(cycles*q) + ripple_cos*cos(cycles*q).
+    pub(super) fn position_torque(&mut self, i: usize) -> NodeId {
         let stretch = self.spring_stretch(i);
-        let stiffness = self.joint(i).effects[5];
-        self.dag.product2(stiffness, stretch)
+        let [.., stiffness, _, ripple_sin, ripple_cos] = self.joint(i).effects;
+        let terms = [
+            (stiffness, stretch),
+            (ripple_sin, self.input(i, RIPPLE_SIN)),
+            (ripple_cos, self.input(i, RIPPLE_COS)),
+        ]
+        .map(|(k, x)| self.dag.product2(k, x));
+        self.sum(&terms)
     }
 
     /// q - spring_rest: the regressor's spring column.

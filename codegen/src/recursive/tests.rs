@@ -31,13 +31,27 @@ const PLANAR: &str = r#"
     parent = "upper"
     child = "fore"
     origin = { xyz = [0.8, 0.0, 0.0] }
-    effects = { coulomb = 0.3, coulomb_asymmetry = 0.05, spring = 2.0, spring_rest = 0.4 }
+    effects = { coulomb = 0.3, coulomb_asymmetry = 0.05, spring = 2.0, spring_rest = 0.4, stribeck = 0.15, stribeck_velocity = 0.5, ripple_sin = 0.04, ripple_cos = -0.02, ripple_cycles = 6 }
 "#;
 
-/// The elbow's effects in `PLANAR` without its spring, and its spring.
+/// The elbow's friction in `PLANAR` (Coulomb, asymmetry, Stribeck), and
+/// its torque of the position (spring, ripple).
 fn elbow_effects(q: f64, qd: f64) -> (f64, f64) {
     let sign = qd.signum();
-    (0.3 * sign + 0.05 * sign * sign, 2.0 * (q - 0.4))
+    let friction = 0.3 * sign + 0.05 * sign * sign + 0.15 * sign * (-(qd / 0.5).powi(2)).exp();
+    let position = 2.0 * (q - 0.4) + 0.04 * (6.0 * q).sin() - 0.02 * (6.0 * q).cos();
+    (friction, position)
+}
+
+/// The program inputs of a state of `description`'s chain.
+fn inputs_of(description: &Description, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+    let effects: Vec<_> = description
+        .chain()
+        .bodies
+        .iter()
+        .map(|b| b.effects)
+        .collect();
+    inputs(q, qd, qdd, &effects)
 }
 
 /// The textbook closed form of the planar two-link arm (gravity along -y).
@@ -127,20 +141,29 @@ fn check_against_reference(model: &str, samples: usize) {
         let mut random =
             |scale: f64| -> Vec<f64> { (0..n).map(|_| scale * uniform(&mut state)).collect() };
         let (q, qd, qdd) = (random(std::f64::consts::PI), random(3.0), random(10.0));
-        let x = inputs(&q, &qd, &qdd);
+        let x = inputs(&q, &qd, &qdd, &effects);
         let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
         let zeros = vec![0.0; n];
         let mut tau = rnea(chain, &params, &q, &qd, &qdd, true);
         let mut gravity = rnea(chain, &params, &q, &zeros, &zeros, true);
         for (i, e) in effects.iter().enumerate() {
-            let (sign, spring) = (qd[i].signum(), e.spring * (q[i] - e.spring_rest));
+            let (sign, angle) = (qd[i].signum(), e.ripple_cycles * q[i]);
+            let position = e.spring * (q[i] - e.spring_rest)
+                + e.ripple_sin * angle.sin()
+                + e.ripple_cos * angle.cos();
+            let breakaway = if e.stribeck_velocity > 0.0 {
+                sign * (-(qd[i] / e.stribeck_velocity).powi(2)).exp()
+            } else {
+                0.0
+            };
             tau[i] += e.armature * qdd[i]
                 + e.viscous * qd[i]
                 + e.coulomb * sign
                 + e.coulomb_asymmetry * sign * sign
+                + e.stribeck * breakaway
                 + e.offset
-                + spring;
-            gravity[i] += spring;
+                + position;
+            gravity[i] += position;
         }
         assert_close("tau", &eval(&traced.tau), &tau);
         assert_close("gravity", &eval(&traced.gravity), &gravity);
@@ -187,7 +210,7 @@ fn planar_arm_matches_its_closed_form() {
     let description = Description::parse(PLANAR, "planar", Path::new("planar.toml")).unwrap();
     let traced = trace(description.chain());
     let (q, qd, qdd) = ([0.3, -1.1], [0.7, -0.4], [1.3, 0.5]);
-    let x = inputs(&q, &qd, &qdd);
+    let x = inputs_of(&description, &q, &qd, &qdd);
     let tau = traced.dag.evaluate(&traced.tau, &x);
     let rigid = closed_form(&q, &qd, &qdd);
     let effects = 0.01 * qdd[0] + 0.3 * qd[0] + 0.2 - 0.1;
@@ -198,13 +221,14 @@ fn planar_arm_matches_its_closed_form() {
     let (elbow, spring) = elbow_effects(q[1], qd[1]);
     assert!((tau[1] - rigid[1] - elbow - spring).abs() < 1e-12);
     // Backwards, the elbow's dry friction is coulomb - asymmetry.
-    let x = inputs(&q, &[0.7, 0.4], &qdd);
+    let x = inputs_of(&description, &q, &[0.7, 0.4], &qdd);
     let forwards = traced.dag.evaluate(&traced.tau, &x)[1];
-    let x = inputs(&q, &[0.7, -0.4], &qdd);
+    let x = inputs_of(&description, &q, &[0.7, -0.4], &qdd);
     let backwards = traced.dag.evaluate(&traced.tau, &x)[1];
     let rigid_difference =
         closed_form(&q, &[0.7, 0.4], &qdd)[1] - closed_form(&q, &[0.7, -0.4], &qdd)[1];
-    assert!((forwards - backwards - rigid_difference - 0.6).abs() < 1e-12);
+    let stribeck = 2.0 * 0.15 * (-(0.4_f64 / 0.5).powi(2)).exp();
+    assert!((forwards - backwards - rigid_difference - 0.6 - stribeck).abs() < 1e-12);
 }
 
 #[test]
@@ -225,7 +249,7 @@ fn functions_are_consistent() {
         )
         .collect();
     let (q, qd, qdd) = ([-0.6, 2.0], [1.5, 0.9], [-0.2, 0.8]);
-    let x = inputs(&q, &qd, &qdd);
+    let x = inputs_of(&description, &q, &qd, &qdd);
     let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
     let (tau, m, g, c) = (
         eval(&traced.tau),

@@ -21,7 +21,11 @@ pub fn apply_to_text(
     joints: &[&str],
     last_link: &str,
 ) -> Result<String> {
+    // The file's byte-order mark and line endings are the user's: kept.
+    let bom = source.starts_with('\u{feff}');
+    let crlf = source.contains("\r\n");
     let mut doc: DocumentMut = source
+        .trim_start_matches('\u{feff}')
         .parse()
         .context("the description is not valid TOML")?;
     for effect in &diagnosis.effects {
@@ -106,6 +110,26 @@ pub fn apply_to_text(
                 let rest = value("rest").context("spring without rest angle")?;
                 add_spring(&mut doc, name, stiffness, rest)?;
             }
+            (Kind::StribeckFriction, Some(joint)) => {
+                let name = joints.get(joint - 1).context("joint index out of range")?;
+                let excess = value("excess").context("Stribeck friction without excess")?;
+                let velocity = value("velocity").context("Stribeck friction without velocity")?;
+                add_shaped(
+                    &mut doc,
+                    name,
+                    &[("stribeck", excess)],
+                    ("stribeck_velocity", velocity),
+                )?;
+            }
+            (Kind::TorqueRipple, Some(joint)) => {
+                let name = joints.get(joint - 1).context("joint index out of range")?;
+                let amplitudes = [
+                    ("ripple_sin", value("sin").context("ripple without sin")?),
+                    ("ripple_cos", value("cos").context("ripple without cos")?),
+                ];
+                let cycles = value("cycles").context("ripple without cycles")?;
+                add_shaped(&mut doc, name, &amplitudes, ("ripple_cycles", cycles))?;
+            }
             (Kind::GravityDirection, _) => {
                 let gravity: Vec<f64> = vector(&effect.parameters, "gravity")?
                     .into_iter()
@@ -137,7 +161,14 @@ pub fn apply_to_text(
             (kind, None) => bail!("{kind:?} has no joint"),
         }
     }
-    Ok(doc.to_string())
+    let mut text = doc.to_string().replace("\r\n", "\n");
+    if crlf {
+        text = text.replace('\n', "\r\n");
+    }
+    if bom {
+        text.insert(0, '\u{feff}');
+    }
+    Ok(text)
 }
 
 /// Adds a spring k (q - rest) to a joint's: the stiffnesses add, the rest
@@ -157,6 +188,32 @@ fn add_spring(doc: &mut DocumentMut, joint: &str, stiffness: f64, rest: f64) -> 
     add_joint_effect(doc, joint, "spring", stiffness)?;
     let delta = mean_rest - r0;
     add_joint_effect(doc, joint, "spring_rest", delta)
+}
+
+/// Adds `amplitudes` to a joint's effect whose columns `shape` (a Stribeck
+/// velocity, a ripple's cycles) shapes: the shape is set where the joint
+/// has none of the effect yet, and must match where it has (two Stribeck
+/// velocities or two ripple harmonics are not one term).
+fn add_shaped(
+    doc: &mut DocumentMut,
+    joint: &str,
+    amplitudes: &[(&str, f64)],
+    shape: (&str, f64),
+) -> Result<()> {
+    let (key, value) = shape;
+    let present = amplitudes
+        .iter()
+        .any(|(k, _)| joint_effect(doc, joint, k) != 0.0);
+    let existing = joint_effect(doc, joint, key);
+    if present && existing != value {
+        bail!(
+            "joint `{joint}` already has this effect with {key} = {existing}; the diagnosis              found more of it with {key} = {value}: one term cannot hold both, edit the              description by hand"
+        );
+    }
+    for &(k, amplitude) in amplitudes {
+        add_joint_effect(doc, joint, k, amplitude)?;
+    }
+    add_joint_effect(doc, joint, key, value - existing)
 }
 
 /// A joint's effect value in the document (0 when absent).
@@ -424,198 +481,4 @@ fn changed_lines(old: &str, new: &str) -> Vec<String> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::diagnose::Effect;
-
-    fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
-        Diagnosis {
-            model: "m".into(),
-            preprocessing: crate::preprocess::Pipeline::fixed(
-                crate::preprocess::Preset::Thesis,
-                crate::preprocess::Preprocess::thesis(),
-            ),
-            layout: crate::diagnose::Layout {
-                segments: 2,
-                segment_seconds: 1.0,
-                trimmed_samples: 0,
-            },
-            samples: 0,
-            residual_rms: vec![],
-            residual_share: vec![],
-            regimes: vec![],
-            mse_before: vec![],
-            mse_after: vec![],
-            mse_after_fitted: vec![],
-            effects,
-            unexplained: vec![],
-            identifiability: Default::default(),
-            notes: vec![],
-            residuals: Default::default(),
-        }
-    }
-
-    fn effect(kind: Kind, joint: Option<usize>, params: serde_json::Value) -> Effect {
-        Effect {
-            kind,
-            joint,
-            link: None,
-            parameters: params.as_object().cloned().unwrap_or_default(),
-            ci95: Default::default(),
-            heldout_mse_removed: 0.1,
-            heldout_share: 0.5,
-        }
-    }
-
-    const SOURCE: &str = "# my arm\n[[links]]\nname = \"base\"\n\n[[links]]\nname = \"a\" # upper arm\nmass = 1.0\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[joints]]\nname = \"j1\"\ntype = \"revolute\"\nparent = \"base\"\nchild = \"a\"\neffects = { viscous = 0.1 }\n";
-
-    #[test]
-    fn an_integer_value_is_added_to_not_dropped() {
-        let d = diagnosis(vec![effect(
-            Kind::ViscousFriction,
-            Some(1),
-            serde_json::json!({"coefficient": 0.25}),
-        )]);
-        let source = SOURCE.replace("viscous = 0.1", "viscous = 1");
-        let out = apply_to_text(&source, &d, &["j1"], "a").unwrap();
-        assert!(out.contains("viscous = 1.25"), "{out}");
-    }
-
-    #[test]
-    fn a_tilt_sets_gravity_and_data_properties_leave_the_file() {
-        let tilted = diagnosis(vec![effect(
-            Kind::GravityDirection,
-            None,
-            serde_json::json!({"gravity": [0.0, 0.5, -9.797], "tilt_deg": 2.9}),
-        )]);
-        let out = apply_to_text(SOURCE, &tilted, &["j1"], "a").unwrap();
-        assert!(out.contains("gravity = [0.0, 0.5, -9.797]"), "{out}");
-        assert!(out.contains("# upper arm"), "{out}");
-        let again = apply_to_text(&out, &tilted, &["j1"], "a").unwrap();
-        assert_eq!(again.matches("gravity").count(), 1, "{again}");
-        let data = diagnosis(vec![
-            effect(
-                Kind::TorqueScale,
-                Some(1),
-                serde_json::json!({"scale": 1.1}),
-            ),
-            effect(Kind::TorqueDelay, None, serde_json::json!({"delay": 0.01})),
-        ]);
-        assert_eq!(apply_to_text(SOURCE, &data, &["j1"], "a").unwrap(), SOURCE);
-    }
-
-    #[test]
-    fn a_spring_adds_to_the_joints_keeping_the_torque() {
-        let d = diagnosis(vec![effect(
-            Kind::JointSpring,
-            Some(1),
-            serde_json::json!({"stiffness": 3.0, "rest": 0.5, "constant": -1.5}),
-        )]);
-        let source = SOURCE.replace(
-            "viscous = 0.1",
-            "viscous = 0.1, spring = 1, spring_rest = -0.1",
-        );
-        let out = apply_to_text(&source, &d, &["j1"], "a").unwrap();
-        // 1 (q + 0.1) + 3 (q - 0.5) = 4 (q - 0.35).
-        assert!(out.contains("spring = 4.0"), "{out}");
-        let rest: f64 = out
-            .split("spring_rest = ")
-            .nth(1)
-            .and_then(|t| t.split([' ', '}']).next())
-            .and_then(|t| t.parse().ok())
-            .unwrap();
-        assert!((rest - 0.35).abs() < 1e-12, "{out}");
-        codegen::Description::parse(&out, "arm", std::path::Path::new("arm.toml")).unwrap();
-    }
-
-    #[test]
-    fn changed_lines_are_listed_in_file_order() {
-        let changes = changed_lines("a\nb\nc\n", "a\nB\nc\nd\n");
-        assert_eq!(changes, ["- b", "+ B", "+ d"]);
-    }
-
-    #[test]
-    fn joint_effects_add_to_existing_values_and_keep_comments() {
-        let d = diagnosis(vec![
-            effect(
-                Kind::ViscousFriction,
-                Some(1),
-                serde_json::json!({"coefficient": 0.25}),
-            ),
-            effect(
-                Kind::CoulombFriction,
-                Some(1),
-                serde_json::json!({"level": 0.5}),
-            ),
-        ]);
-        let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
-        assert!(
-            out.contains("# my arm") && out.contains("# upper arm"),
-            "{out}"
-        );
-        assert!(
-            out.contains("viscous = 0.35") && out.contains("coulomb = 0.5"),
-            "{out}"
-        );
-        codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
-    }
-
-    const ARM: &str = "[[links]]\nname = \"base\"\n\n[[links]]\nname = \"a\"\nmass = 1.0 # measured\ncom = [0.0, 0.0, 0.1]\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[links]]\nname = \"b\"\nmass = 0.5\ninertia = { ixx = 0.01, iyy = 0.01, izz = 0.01 }\n\n[[joints]]\nname = \"j1\"\ntype = \"revolute\"\nparent = \"base\"\nchild = \"a\"\n\n[[joints]]\nname = \"j2\"\ntype = \"revolute\"\nparent = \"a\"\nchild = \"b\"\norigin = { xyz = [0.0, 0.0, 0.2] }\naxis = [0.0, 1.0, 0.0]\n";
-
-    fn link_error(params: serde_json::Value) -> Diagnosis {
-        let mut e = effect(Kind::InertialError, None, params);
-        e.link = Some("a".into());
-        diagnosis(vec![e])
-    }
-
-    #[test]
-    fn inertial_error_corrects_the_links_mass_and_com() {
-        let d = link_error(serde_json::json!({
-            "mass": 1.2, "com": [0.02, null, 0.12],
-            "nominal_mass": 1.0, "nominal_com": [0.0, 0.0, 0.1]
-        }));
-        let out = apply_to_text(ARM, &d, &["j1", "j2"], "b").unwrap();
-        assert!(out.contains("# measured"), "{out}");
-        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
-        let body = &parsed.chain().bodies[0].inertial;
-        assert!((body.mass - 1.2).abs() < 1e-12, "{out}");
-        // The null y component stays as modelled.
-        let com = body.standard_parameters();
-        for (k, c) in [0.02, 0.0, 0.12].iter().enumerate() {
-            assert!((com[1 + k] / com[0] - c).abs() < 1e-12, "com[{k}]: {out}");
-        }
-    }
-
-    #[test]
-    fn an_unidentifiable_mass_is_kept_and_the_first_moment_moves_the_com() {
-        let d = link_error(serde_json::json!({
-            "mass": null, "com": [null, null, null],
-            "first_moment": [0.03, null, 0.15],
-            "nominal_mass": 1.0, "nominal_com": [0.0, 0.0, 0.1]
-        }));
-        let out = apply_to_text(ARM, &d, &["j1", "j2"], "b").unwrap();
-        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
-        let p = parsed.chain().bodies[0].inertial.standard_parameters();
-        assert!((p[0] - 1.0).abs() < 1e-12, "mass changed: {out}");
-        for (k, h) in [0.03, 0.0, 0.15].iter().enumerate() {
-            assert!((p[1 + k] - h).abs() < 1e-12, "m*c[{k}]: {out}");
-        }
-    }
-
-    #[test]
-    fn payload_becomes_a_fixed_child_body() {
-        let d = diagnosis(vec![effect(
-            Kind::Payload,
-            None,
-            serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2]}),
-        )]);
-        let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
-        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
-        let body = &parsed.chain().bodies[0];
-        assert!((body.inertial.mass - 1.4).abs() < 1e-12);
-        assert!(
-            out.contains("name = \"payload\"") && out.contains("type = \"fixed\""),
-            "{out}"
-        );
-    }
-}
+mod tests;

@@ -1,0 +1,229 @@
+//! Shapes of the columns that are not linear in their parameters, chosen
+//! from the data before the fit: a joint's Stribeck velocity and the
+//! harmonic of its torque ripple. Each is the profile least-squares choice
+//! (the shape whose columns, fitted with the joint's own simple columns,
+//! leave the least residual), and the candidate records how many shapes
+//! were tried, so its significance threshold grows with the search.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::data::Stacked;
+
+/// Stribeck velocities tried, rad/s: ratio 1.4 from 0.01 to 0.79, so the
+/// chosen one is within 18% of any velocity in that range. Below 0.01 rad/s
+/// a joint's velocity is not resolved from a logged state; above 0.8 rad/s
+/// the shape is a slope of viscous friction, not a breakaway.
+pub fn stribeck_velocities() -> Vec<f64> {
+    (0..14).map(|k| 0.01 * 1.4_f64.powi(k)).collect()
+}
+
+/// A Stribeck velocity is resolved from the recorded speeds at this
+/// multiple of the joint's at-rest speed (three noise deviations): below,
+/// its column is the samples just past the at-rest threshold, where a
+/// joint that sticks and slips (any dry friction) leaves structure too.
+const RESOLVED_REST_MULTIPLE: f64 = 3.0;
+
+/// Most ripple periods per joint revolution searched; and the least number
+/// of periods over the range the joint travelled (fewer are a smooth
+/// function of the position: a spring, gravity, an offset).
+const MOST_CYCLES: usize = 64;
+const LEAST_PERIODS_TRAVELLED: f64 = 2.0;
+/// Harmonics of the position up to the second are gravity and inertial
+/// terms of the rigid body: a ripple starts at the third.
+const LEAST_CYCLES: usize = 3;
+
+/// What the other candidates could explain on one joint's rows: the
+/// search profiles the residual and each trial shape after projecting
+/// these out, so a large other effect (a payload, a scale error) does not
+/// choose the shape.
+pub(super) struct Nuisance {
+    rows: Vec<usize>,
+    basis: DMatrix<f64>,
+    residual: DVector<f64>,
+}
+
+impl Nuisance {
+    /// The joint's rows of `columns`, made orthonormal (columns without
+    /// independent content are dropped), and the residual with them
+    /// projected out.
+    pub(super) fn new(data: &Stacked, j: usize, columns: &[&DVector<f64>]) -> Nuisance {
+        let rows = joint_rows(data, j);
+        let restricted = DMatrix::from_fn(rows.len(), columns.len(), |i, k| columns[k][rows[i]]);
+        let basis = orthonormal_basis(restricted);
+        let mut nuisance = Nuisance {
+            residual: DVector::zeros(0),
+            basis,
+            rows,
+        };
+        nuisance.residual = nuisance.project_out(&data.residual);
+        nuisance
+    }
+
+    /// The joint's rows of `column` minus their projection on the basis.
+    fn project_out(&self, column: &DVector<f64>) -> DVector<f64> {
+        let v = DVector::from_iterator(self.rows.len(), self.rows.iter().map(|&r| column[r]));
+        let coefficients = self.basis.tr_mul(&v);
+        v - &self.basis * coefficients
+    }
+
+    /// Residual sum of squares left by a least-squares fit of `shape`'s
+    /// columns after the projection (infinite when they vanish).
+    fn leaves(&self, shape: &[DVector<f64>]) -> f64 {
+        let projected: Vec<DVector<f64>> = shape.iter().map(|c| self.project_out(c)).collect();
+        let k = projected.len();
+        let normal = DMatrix::from_fn(k, k, |a, b| projected[a].dot(&projected[b]));
+        let moment = DVector::from_fn(k, |a, _| projected[a].dot(&self.residual));
+        match normal.cholesky() {
+            Some(c) => self.residual.norm_squared() - moment.dot(&c.solve(&moment)),
+            None => f64::INFINITY,
+        }
+    }
+}
+
+/// An orthonormal basis of the column space of `x` (Gram-Schmidt twice
+/// over the columns scaled to unit norm; a column with under 1e-9 of its
+/// norm left is dependent and dropped).
+fn orthonormal_basis(x: DMatrix<f64>) -> DMatrix<f64> {
+    let mut basis: Vec<DVector<f64>> = Vec::new();
+    for column in x.column_iter() {
+        let norm = column.norm();
+        if norm.is_nan() || norm <= 0.0 {
+            continue;
+        }
+        let mut v: DVector<f64> = column / norm;
+        for _ in 0..2 {
+            for b in &basis {
+                let along = b.dot(&v);
+                v -= b * along;
+            }
+        }
+        let left = v.norm();
+        if left > 1e-9 {
+            basis.push(v / left);
+        }
+    }
+    if basis.is_empty() {
+        return DMatrix::zeros(x.nrows(), 0);
+    }
+    DMatrix::from_columns(&basis)
+}
+
+/// The Stribeck velocity of joint `j` (index into `columns` and its value):
+/// among the grid's velocities of at least [`RESOLVED_REST_MULTIPLE`] times
+/// the joint's at-rest speed `rest` (slower ones are not resolved), the one
+/// whose fitted column leaves the least residual once `nuisance` is
+/// projected out. `None` when no velocity of the grid is resolved.
+pub(super) fn stribeck_velocity(
+    nuisance: &Nuisance,
+    rest: f64,
+    columns: &[(DVector<f64>, DVector<f64>)],
+) -> Option<(usize, f64, usize)> {
+    let velocities = stribeck_velocities();
+    if columns.len() != velocities.len() {
+        return None; // Stribeck friction does not compete
+    }
+    let resolved: Vec<usize> = (0..velocities.len())
+        .filter(|&k| velocities[k] >= RESOLVED_REST_MULTIPLE * rest)
+        .collect();
+    let best = resolved
+        .iter()
+        .map(|&k| (k, nuisance.leaves(std::slice::from_ref(&columns[k].0))))
+        .min_by(|x, y| x.1.total_cmp(&y.1))?;
+    Some((best.0, velocities[best.0], resolved.len()))
+}
+
+/// The ripple harmonic of joint `j` (periods per revolution) and how many
+/// column shapes were searched (two per harmonic): integers from the third harmonic (and at least two
+/// periods over the range the joint travelled) to [`MOST_CYCLES`], the one
+/// whose sine and cosine of `cycles * q` leave the least residual once
+/// `nuisance` is projected out. `None` when the joint travelled too little
+/// for any.
+pub(super) fn ripple_cycles(
+    data: &Stacked,
+    j: usize,
+    angle: &DVector<f64>,
+    nuisance: &Nuisance,
+) -> Option<(f64, usize)> {
+    let rows = joint_rows(data, j);
+    let (low, high) = rows
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &r| {
+            (l.min(angle[r]), h.max(angle[r]))
+        });
+    let travelled = high - low;
+    if travelled.is_nan() || travelled <= 0.0 {
+        return None;
+    }
+    let fewest = (LEAST_PERIODS_TRAVELLED * std::f64::consts::TAU / travelled).ceil();
+    let first = LEAST_CYCLES.max(fewest.min(MOST_CYCLES as f64 + 1.0) as usize);
+    if first > MOST_CYCLES {
+        return None;
+    }
+    let best = (first..=MOST_CYCLES)
+        .map(|h| {
+            let h = h as f64;
+            let shape = [angle.map(|q| (h * q).sin()), angle.map(|q| (h * q).cos())];
+            (h, nuisance.leaves(&shape))
+        })
+        .min_by(|x, y| x.1.total_cmp(&y.1))?;
+    // Either column may pass the significance test: two tests per harmonic.
+    Some((best.0, 2 * (MOST_CYCLES - first + 1)))
+}
+
+fn joint_rows(data: &Stacked, j: usize) -> Vec<usize> {
+    (j..data.residual.len()).step_by(data.dof).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One joint's stacked data with residual `f(q, qd)` along a sweep.
+    fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVector<f64>) {
+        let samples = 4000;
+        let t = |s: usize| s as f64 * 0.005;
+        let q = DVector::from_fn(samples, |s, _| 1.2 * (0.7 * t(s)).sin());
+        let qd = DVector::from_fn(samples, |s, _| 0.84 * (0.7 * t(s)).cos());
+        let residual = DVector::from_fn(samples, |s, _| f(q[s], qd[s]));
+        let data = Stacked {
+            measured: residual.clone(),
+            residual,
+            qd: qd.clone(),
+            qdd: DVector::zeros(samples),
+            gravity: DVector::zeros(samples),
+            generic: Vec::new(),
+            group: (0..samples).map(|s| s * 4 / samples).collect(),
+            dof: 1,
+        };
+        (data, q, qd)
+    }
+
+    #[test]
+    fn the_ripple_harmonic_is_found() {
+        let (data, q, _) = sweep(|q, _| 0.3 * (11.0 * q).sin() - 0.1 * (11.0 * q).cos());
+        let nuisance = Nuisance::new(&data, 0, &[]);
+        let (cycles, searched) = ripple_cycles(&data, 0, &q, &nuisance).unwrap();
+        assert_eq!(cycles, 11.0);
+        // 2.4 rad travelled: at least 6 periods per revolution.
+        assert_eq!(searched, 2 * (MOST_CYCLES - 6 + 1));
+    }
+
+    #[test]
+    fn the_stribeck_velocity_is_the_nearest_on_the_grid() {
+        let velocities = stribeck_velocities();
+        let shape = |v: f64, qd: f64| qd.signum() * (-(qd / v).powi(2)).exp();
+        let (data, _, qd) = sweep(|_, qd| 0.4 * qd.signum() + 0.2 * shape(0.1, qd));
+        let columns: Vec<_> = velocities
+            .iter()
+            .map(|&v| {
+                let c = qd.map(|x| shape(v, x));
+                (c.clone(), c)
+            })
+            .collect();
+        let sign = qd.map(f64::signum);
+        let ones = DVector::from_element(qd.len(), 1.0);
+        let nuisance = Nuisance::new(&data, 0, &[&qd, &sign, &ones]);
+        let (_, velocity, _) = stribeck_velocity(&nuisance, 0.02, &columns).unwrap();
+        assert!((velocity / 0.1 - 1.0).abs() < 0.2, "{velocity}");
+    }
+}
