@@ -151,6 +151,15 @@ impl InputArgs {
                     median_step,
                     ..
                 }) => {
+                    if *max_step > (GAP_STEPS * median_step).max(MIN_GAP_SECONDS) {
+                        bail!(
+                            "{}: a gap of {max_step:.3} s between two samples (the median step is \
+                             {:.3} ms): resampling would fill it with invented samples; split the \
+                             recording at the gap, or pass --resample HZ to interpolate across it",
+                            path.display(),
+                            1e3 * median_step
+                        );
+                    }
                     let hz = (1.0 / median_step).round().max(1.0);
                     eprintln!(
                         "{}: time steps range from {:.3} to {:.3} ms: resampled to {hz} Hz, the \
@@ -336,7 +345,18 @@ pub fn load(
 /// Largest magnitudes accepted from a recording, far beyond any arm
 /// (angles of 160 turns, 1000 rad/s, a million N m): a value past them is
 /// a logging fault, and squared in the dynamics it would overflow.
-pub const PLAUSIBLE: [(&str, f64); 3] = [("q", 1e3), ("qd", 1e3), ("tau", 1e6)];
+pub const PLAUSIBLE: [(&str, f64); 3] = [
+    ("q", crate::trajectory::PLAUSIBLE_ANGLE),
+    ("qd", crate::trajectory::PLAUSIBLE_ANGLE),
+    ("tau", crate::trajectory::PLAUSIBLE_TORQUE),
+];
+
+/// A step longer than this many median steps, and than
+/// [`MIN_GAP_SECONDS`], is a gap in the log, not jitter: the automatic
+/// resampling refuses to bridge it (jittery logs such as the Panda's range
+/// up to 9 median steps).
+const GAP_STEPS: f64 = 20.0;
+const MIN_GAP_SECONDS: f64 = 0.1;
 
 /// Joint logs tick at tens of Hz or faster; steps of 0.2 s and more most
 /// often mean a time column in milliseconds, read as seconds.

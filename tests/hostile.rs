@@ -354,3 +354,56 @@ fn dash_is_standard_output_for_files_and_refused_for_folders() {
         refused(&sdnn(&command), "cannot hold a folder");
     }
 }
+
+#[test]
+fn endless_lines_gaps_and_devices_are_handled() {
+    let dir = Dir::new();
+    // A line without end (a binary file, /dev/zero): refused, bounded.
+    let endless = dir.write("endless.csv", &"1".repeat(2 << 20));
+    refused(
+        &sdnn(&["evaluate", "--data", endless.to_str().unwrap()]),
+        "longer than 1 MiB",
+    );
+    // A 10 s hole in a 1 kHz log is not jitter to interpolate over.
+    let mut rows = String::from("t,q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n");
+    for k in 0..3000 {
+        let t = f64::from(k) * 1e-3 + if k >= 1500 { 10.0 } else { 0.0 };
+        rows.push_str(&format!("{t},0.1,0.2,0.3,0,0,0,0,1,0\n"));
+    }
+    let gap = dir.write("gap.csv", &rows);
+    refused(
+        &sdnn(&["evaluate", "--data", gap.to_str().unwrap()]),
+        "a gap of 10.001 s",
+    );
+    // A device is written into, not replaced by a file.
+    let states = dir.write("s.csv", STATES);
+    let run = tau(&states, Some(Path::new("/dev/null")));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    use std::os::unix::fs::FileTypeExt;
+    assert!(
+        std::fs::metadata("/dev/null")
+            .unwrap()
+            .file_type()
+            .is_char_device()
+    );
+    // Two inputs with one name would write one output over the other.
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let twin = other.join("s.csv");
+    std::fs::write(&twin, STATES).unwrap();
+    let out = dir.path().join("out");
+    refused(
+        &sdnn(&[
+            "synth",
+            states.to_str().unwrap(),
+            twin.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]),
+        "have the same file name",
+    );
+}

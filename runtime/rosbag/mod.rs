@@ -329,6 +329,9 @@ pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointState
     Ok(out)
 }
 
+/// Largest record or chunk (compressed or decompressed) of a bag, bytes.
+const MAX_RECORD_BYTES: usize = 256 << 20;
+
 /// Streams the whole bag once, keeping the raw messages of the JointState
 /// topics that may be selected, then picks the topic.
 fn collect_topic(
@@ -343,7 +346,13 @@ fn collect_topic(
     // topic -> (schema, encoding), for error messages.
     let mut seen: BTreeMap<String, (String, String)> = BTreeMap::new();
     let mut candidates: BTreeMap<String, Raw> = BTreeMap::new();
-    for message in mcap::MessageStream::new(bytes).map_err(mcap_error)? {
+    // Every record and chunk, compressed or not, is bounded before it is
+    // buffered or decompressed: a corrupt length or compressed stream is an
+    // error, not an allocation of its claimed size.
+    let options = mcap::sans_io::LinearReaderOptions::default()
+        .with_record_length_limit(MAX_RECORD_BYTES)
+        .with_prevalidate_chunk_crcs(true);
+    for message in mcap::io::MessageReader::new_with_options(bytes, options) {
         let message = message.map_err(mcap_error)?;
         let channel = &message.channel;
         let schema = channel
