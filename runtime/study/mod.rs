@@ -26,6 +26,13 @@ use crate::sim::reference::{
 use crate::sim::simulate::{SimConfig, open_loop, simulate};
 use crate::trajectory::{Trajectory, write_csv};
 
+mod recording;
+mod training;
+
+pub use recording::{limits, record_trajectory, trajectory_seed};
+use recording::{open_loop_evaluation, record};
+use training::{Job, Recipe, Trained, jobs, train_all};
+
 /// Everything the study needs; `Default` is the thesis's setup.
 #[derive(Debug, Clone, Serialize)]
 pub struct StudyConfig {
@@ -116,25 +123,6 @@ pub struct StudyResult {
     /// Analytical-model test MSE with each filter (the zero-phase comparison).
     pub filter_comparison: Vec<(String, f64)>,
     pub config: StudyConfig,
-}
-
-/// How a network's training data is made.
-#[derive(Debug, Clone, PartialEq)]
-enum Recipe {
-    Measured,
-    Analytical,
-    Synthesized {
-        ratio: f64,
-    },
-    Theoretical,
-    Residual,
-    /// The residual of the model identified on the training recordings.
-    IdentifiedResidual,
-}
-
-struct Job {
-    name: String,
-    recipe: Recipe,
 }
 
 /// Progress reporting hook: (done, total, message).
@@ -359,123 +347,6 @@ fn check(config: &StudyConfig, plant: &dyn Dynamics, nominal: &dyn Dynamics) -> 
     Ok(())
 }
 
-/// Joint limits of the random trajectories: the description's position
-/// limits (+-pi for a joint without limits), its velocity limits capped at
-/// the study's velocity cap, and the study's acceleration cap.
-pub fn limits(model: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
-    let description = parsed_description(model)?;
-    let bodies = &description.chain().bodies;
-    let position = bodies
-        .iter()
-        .map(|b| b.limits.map_or((-PI, PI), |l| (l.lower, l.upper)))
-        .collect();
-    let velocity = bodies
-        .iter()
-        .map(|b| {
-            let limit = b.limits.and_then(|l| l.velocity).unwrap_or(f64::INFINITY);
-            config.max_velocity.min(limit)
-        })
-        .collect();
-    Ok(JointLimits {
-        position,
-        velocity,
-        acceleration: vec![config.max_acceleration; model.dof()],
-    })
-}
-
-/// Records the trajectories (in parallel, two at a time) and preprocesses them.
-fn record(
-    plant: &dyn Dynamics,
-    controller: &dyn Dynamics,
-    config: &StudyConfig,
-    out: &Path,
-    progress: Progress<'_>,
-) -> Result<Data> {
-    let waypoints = WaypointConfig {
-        duration: config.duration,
-        limits: limits(controller, config)?,
-        ..WaypointConfig::default()
-    };
-    let recordings = parallel_map(
-        config.trajectories,
-        |k| -> Result<(Trajectory, Trajectory)> {
-            let seed = trajectory_seed(config.seed, k);
-            let recording = record_noisy(plant, controller, &waypoints, seed, config.noise_scale)?;
-            progress(k + 1, config.trajectories, "recording trajectories");
-            Ok((recording.measured, recording.reference))
-        },
-    )?;
-    let mut raw = Vec::new();
-    let mut references = Vec::new();
-    let mut processed = Vec::new();
-    for (k, (measured, reference)) in recordings.into_iter().enumerate() {
-        write_csv(
-            out.join("data")
-                .join(format!("trajectory_{:02}.csv", k + 1)),
-            &measured,
-        )?;
-        processed.push(config.preprocess.apply(&measured)?);
-        raw.push(measured);
-        references.push(reference);
-    }
-    let mut order: Vec<usize> = (0..config.trajectories).collect();
-    order.shuffle(&mut ChaCha8Rng::seed_from_u64(seeds::derive(
-        config.seed,
-        Purpose::Split,
-        0,
-    )));
-    let (train, test) = order.split_at(config.train);
-    let (mut train, mut test) = (train.to_vec(), test.to_vec());
-    train.sort_unstable();
-    test.sort_unstable();
-    Ok(Data {
-        raw,
-        processed,
-        references,
-        train,
-        test,
-    })
-}
-
-/// The seed of trajectory `k` of a recording session.
-pub fn trajectory_seed(seed: u64, k: usize) -> u64 {
-    seeds::derive(seed, Purpose::Trajectory, k as u64)
-}
-
-/// Records one random-waypoint trajectory on the virtual robot, its
-/// controller tracking with `controller`'s dynamics.
-pub fn record_trajectory(
-    plant: &dyn Dynamics,
-    controller: &dyn Dynamics,
-    waypoints: &WaypointConfig,
-    seed: u64,
-) -> Result<crate::sim::simulate::Recording> {
-    record_noisy(plant, controller, waypoints, seed, 1.0)
-}
-
-/// [`record_trajectory`] with the sensor noise scaled by `noise_scale`.
-fn record_noisy(
-    plant: &dyn Dynamics,
-    controller: &dyn Dynamics,
-    waypoints: &WaypointConfig,
-    seed: u64,
-    noise_scale: f64,
-) -> Result<crate::sim::simulate::Recording> {
-    let reference = WaypointTrajectory::new(waypoints, seed)?;
-    let mut sim = SimConfig::default();
-    let noise = &mut sim.noise;
-    noise.torque_sigma *= noise_scale;
-    noise.velocity_sigma *= noise_scale;
-    noise.angle_sigma *= noise_scale;
-    Ok(simulate(
-        &Compiled(plant),
-        &Compiled(controller),
-        &reference,
-        &sim,
-        seed,
-    )?)
-}
-
 /// Mean squared error per joint.
 pub fn mse_per_joint(predicted: &DMatrix<f64>, measured: &DMatrix<f64>) -> Vec<f64> {
     let rows = measured.nrows().max(1) as f64;
@@ -569,243 +440,11 @@ fn compare_filters(
         .collect()
 }
 
-fn jobs(config: &StudyConfig) -> Vec<Job> {
-    let mut jobs = vec![
-        Job {
-            name: "NN on measured data".into(),
-            recipe: Recipe::Measured,
-        },
-        Job {
-            name: "NN on analytical data".into(),
-            recipe: Recipe::Analytical,
-        },
-        Job {
-            name: "SDNN (measured + analytical)".into(),
-            recipe: Recipe::Synthesized { ratio: 1.0 },
-        },
-        Job {
-            name: "Hybrid (analytical + NN residual)".into(),
-            recipe: Recipe::Residual,
-        },
-        Job {
-            name: "SDNN (measured + theoretical)".into(),
-            recipe: Recipe::Theoretical,
-        },
-        Job {
-            name: IDENTIFIED_HYBRID.into(),
-            recipe: Recipe::IdentifiedResidual,
-        },
-    ];
-    for &ratio in &config.mixing_ratios {
-        jobs.push(Job {
-            name: format!("SDNN, analytical:measured = {ratio}"),
-            recipe: Recipe::Synthesized { ratio },
-        });
-    }
-    jobs
-}
-
 /// The analytical model's row.
 pub const ANALYTICAL: &str = "Analytical model (Euler-Lagrange)";
 /// The identified model's row and its hybrid's, in every table.
 pub const IDENTIFIED: &str = "Identified model (least squares)";
 pub const IDENTIFIED_HYBRID: &str = "Hybrid (identified + NN residual)";
-
-/// Training sets per recipe, built once.
-struct TrainingSets {
-    measured: Dataset,
-    analytical: Dataset,
-    theoretical: Dataset,
-    residual: Dataset,
-    identified_residual: Dataset,
-}
-
-fn training_sets(
-    nominal: &dyn Dynamics,
-    identified: &Identified,
-    data: &Data,
-    config: &StudyConfig,
-) -> Result<TrainingSets> {
-    let mut measured = Vec::new();
-    let mut analytical = Vec::new();
-    let mut residual = Vec::new();
-    let mut identified_residual = Vec::new();
-    for &k in &data.train {
-        let traj = &data.processed[k];
-        let model = model_torques(nominal, traj)?;
-        let fitted = identified.torques(traj)?;
-        measured.push(Dataset::from_trajectory(traj, k)?);
-        analytical.push(Dataset::from_trajectory(&traj.with_tau(model.clone())?, k)?);
-        residual.push(Dataset::from_trajectory(
-            &traj.with_tau(traj.tau() - model)?,
-            k,
-        )?);
-        identified_residual.push(Dataset::from_trajectory(
-            &traj.with_tau(traj.tau() - fitted)?,
-            k,
-        )?);
-    }
-    let theoretical = theoretical_data(nominal, config)?;
-    Ok(TrainingSets {
-        measured: Dataset::concat(&measured)?,
-        analytical: Dataset::concat(&analytical)?,
-        theoretical,
-        residual: Dataset::concat(&residual)?,
-        identified_residual: Dataset::concat(&identified_residual)?,
-    })
-}
-
-/// Smooth excitation trajectories with exact q, qd, qdd at 100 Hz and the
-/// nominal model's torque (thesis 4.3.1).
-fn theoretical_data(nominal: &dyn Dynamics, config: &StudyConfig) -> Result<Dataset> {
-    let excitation = ExcitationConfig {
-        duration: config.duration,
-        limits: limits(nominal, config)?,
-        ..ExcitationConfig::default()
-    };
-    let dt = 0.01;
-    let samples = (config.duration / dt).round() as usize + 1;
-    let mut parts = Vec::new();
-    for k in 0..config.theoretical_trajectories {
-        let reference = ExcitationTrajectory::new(
-            &excitation,
-            seeds::derive(config.seed, Purpose::Theoretical, k as u64),
-        )?;
-        let n = reference.dof();
-        let (mut q, mut qd, mut qdd) = (
-            DMatrix::zeros(samples, n),
-            DMatrix::zeros(samples, n),
-            DMatrix::zeros(samples, n),
-        );
-        let t: Vec<f64> = (0..samples).map(|i| i as f64 * dt).collect();
-        for (i, &ti) in t.iter().enumerate() {
-            let (a, b, c) = reference.sample(ti);
-            q.set_row(i, &a.transpose());
-            qd.set_row(i, &b.transpose());
-            qdd.set_row(i, &c.transpose());
-        }
-        let zeros = DMatrix::zeros(samples, n);
-        let traj = Trajectory::new(t, q, qd, Some(qdd), zeros)?;
-        let tau = model_torques(nominal, &traj)?;
-        parts.push(Dataset::from_trajectory(&traj.with_tau(tau)?, 10_000 + k)?);
-    }
-    Ok(Dataset::concat(&parts)?)
-}
-
-/// Takes `ratio * len(measured)` analytical rows (cycling if more are needed).
-fn mix(measured: &Dataset, analytical: &Dataset, ratio: f64, seed: u64) -> Result<Dataset> {
-    let wanted = (ratio * measured.len() as f64).round() as usize;
-    let mut rows: Vec<usize> = (0..analytical.len()).collect();
-    rows.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
-    let picked: Vec<usize> = rows.iter().cycle().take(wanted).copied().collect();
-    let pick =
-        |m: &DMatrix<f64>| DMatrix::from_fn(picked.len(), m.ncols(), |r, c| m[(picked[r], c)]);
-    let groups = analytical
-        .groups
-        .as_ref()
-        .map(|g| picked.iter().map(|&r| g[r]).collect());
-    let part = Dataset::new(pick(&analytical.inputs), pick(&analytical.targets), groups)?;
-    Ok(Dataset::concat(&[measured.clone(), part])?)
-}
-
-fn dataset_for(recipe: &Recipe, sets: &TrainingSets, seed: u64) -> Result<Dataset> {
-    Ok(match recipe {
-        Recipe::Measured => sets.measured.clone(),
-        Recipe::Analytical => sets.analytical.clone(),
-        Recipe::Residual => sets.residual.clone(),
-        Recipe::IdentifiedResidual => sets.identified_residual.clone(),
-        Recipe::Synthesized { ratio } => mix(&sets.measured, &sets.analytical, *ratio, seed)?,
-        Recipe::Theoretical => Dataset::concat(&[sets.measured.clone(), sets.theoretical.clone()])?,
-    })
-}
-
-/// Per job, per seed: (test MSE per joint, the trained network).
-type Trained = Vec<Vec<(Vec<f64>, Mlp)>>;
-
-/// A test trajectory, its network inputs, and the analytical and identified
-/// models' torques along it.
-type TestCase<'a> = (&'a Trajectory, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>);
-
-fn train_all(
-    nominal: &dyn Dynamics,
-    identified: &Identified,
-    data: &Data,
-    config: &StudyConfig,
-    jobs: &[Job],
-    out: &Path,
-    progress: Progress<'_>,
-) -> Result<Trained> {
-    let sets = training_sets(nominal, identified, data, config)?;
-    let test: Vec<TestCase> = data
-        .test
-        .iter()
-        .map(|&k| {
-            let traj = &data.processed[k];
-            Ok((
-                traj,
-                Dataset::from_trajectory(traj, k)?.inputs,
-                model_torques(nominal, traj)?,
-                identified.torques(traj)?,
-            ))
-        })
-        .collect::<Result<_>>()?;
-    let total = jobs.len() * config.seeds;
-    let done = Mutex::new(0usize);
-    let results = parallel_map(total, |i| -> Result<(Vec<f64>, Mlp)> {
-        let (job, seed) = (&jobs[i / config.seeds], (i % config.seeds) as u64);
-        let training = dataset_for(
-            &job.recipe,
-            &sets,
-            seeds::derive(config.seed, Purpose::Mix, seed),
-        )?;
-        let network = Mlp::params()
-            .hidden(config.hidden.clone())
-            .max_epochs(config.max_epochs)
-            .patience(config.patience)
-            .batch_size(config.batch_size)
-            .learning_rate(config.learning_rate)
-            .seed(seeds::derive(config.seed, Purpose::Network, seed))
-            .fit(&training)
-            .with_context(|| format!("training {} (seed {seed})", job.name))?;
-        let pairs = test
-            .iter()
-            .map(|(traj, inputs, analytical, fitted)| {
-                let mut predicted = network.predict(inputs)?;
-                match job.recipe {
-                    Recipe::Residual => predicted += analytical,
-                    Recipe::IdentifiedResidual => predicted += fitted,
-                    _ => {}
-                }
-                Ok((predicted, *traj))
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let mse = pooled_mse(&pairs);
-        let mut count = done
-            .lock()
-            .map_err(|_| anyhow::anyhow!("progress counter poisoned"))?;
-        *count += 1;
-        progress(*count, total, "training networks");
-        Ok((mse, network))
-    })?;
-    let mut by_job: Trained = Vec::new();
-    for (i, result) in results.into_iter().enumerate() {
-        if i % config.seeds == 0 {
-            by_job.push(Vec::new());
-        }
-        by_job.last_mut().expect("pushed above").push(result);
-    }
-    std::fs::create_dir_all(out.join("networks"))?;
-    for (job, seeds) in jobs.iter().zip(&by_job) {
-        let file = out
-            .join("networks")
-            .join(format!("{}.json", slug(&job.name)));
-        seeds[0]
-            .1
-            .save(&file)
-            .with_context(|| format!("saving {}", file.display()))?;
-    }
-    Ok(by_job)
-}
 
 /// A file-name-safe version of a model name.
 pub fn slug(name: &str) -> String {
@@ -855,59 +494,6 @@ fn mean_std(values: &[f64]) -> (f64, f64) {
     }
     let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
     (mean, var.sqrt())
-}
-
-/// Thesis 4.3.2: replay each model's torques for the planned motion of the
-/// first test trajectory open-loop on the plant; RMS joint-angle error over
-/// the window.
-fn open_loop_evaluation(
-    plant: &dyn Dynamics,
-    nominal: &dyn Dynamics,
-    identified: &Identified,
-    data: &Data,
-    config: &StudyConfig,
-    (jobs, networks): (&[Job], &Trained),
-    models: &mut [ModelResult],
-) -> Result<()> {
-    let reference = &data.references[data.test[0]];
-    let dt = reference.t()[1] - reference.t()[0];
-    let steps = ((config.open_loop_seconds / dt).round() as usize).min(reference.len());
-    let window = Trajectory::new(
-        reference.t()[..steps].to_vec(),
-        reference.q().rows(0, steps).into_owned(),
-        reference.qd().rows(0, steps).into_owned(),
-        reference.qdd().map(|a| a.rows(0, steps).into_owned()),
-        reference.tau().rows(0, steps).into_owned(),
-    )?;
-    let inputs = Dataset::from_trajectory(&window, 0)?.inputs;
-    let analytical = model_torques(nominal, &window)?;
-    let replay = |torques: &DMatrix<f64>| -> Result<f64> {
-        let q0: Vec<f64> = window.q().row(0).iter().copied().collect();
-        let qd0: Vec<f64> = window.qd().row(0).iter().copied().collect();
-        let q = open_loop(&Compiled(plant), &q0, &qd0, torques, dt)?;
-        let rows = q.nrows().min(steps);
-        let err = q.rows(0, rows) - window.q().rows(0, rows);
-        Ok((err.norm_squared() / (rows * err.ncols()) as f64).sqrt())
-    };
-    let fitted = identified.torques(&window)?;
-    let mut set = |name: &str, torques: &DMatrix<f64>| -> Result<()> {
-        if let Some(m) = models.iter_mut().find(|m| m.name == name) {
-            m.open_loop_rms = Some(replay(torques)?);
-        }
-        Ok(())
-    };
-    set(ANALYTICAL, &analytical)?;
-    set(IDENTIFIED, &fitted)?;
-    for (job, seeds) in jobs.iter().zip(networks) {
-        let mut torques = seeds[0].1.predict(&inputs)?;
-        match job.recipe {
-            Recipe::Residual => torques += &analytical,
-            Recipe::IdentifiedResidual => torques += &fitted,
-            _ => {}
-        }
-        set(&job.name, &torques)?;
-    }
-    Ok(())
 }
 
 /// Maps `f` over 0..n on two threads (this machine's cores), in order.
