@@ -98,8 +98,46 @@ pub struct ReproduceArgs {
     /// torque 0.05 N m, velocity 0.02 rad/s, angle 1e-5 rad), 0-10.
     #[arg(long, default_value_t = 1.0, value_parser = ranges::real(0.0, 10.0, false, "noise beyond 10x the sensor's is not a measurement"))]
     pub noise_scale: f64,
+    /// Instead of one study, map when SDNN helps: a grid over the
+    /// analytical model's error (0, 0.5, 1, 2 x the thesis's), training
+    /// trajectories (2, 5, 10, 20) and sensor noise (0.5, 1, 2 x), 5 seeds x
+    /// 3 splits per cell, on the thesis situation's plant; writes map.md,
+    /// map.json and map.svg into --out.
+    #[arg(long)]
+    pub map: bool,
     #[command(flatten)]
     pub run: StudyRunArgs,
+}
+
+fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
+    let (plant, exact, thesis) = (
+        find_model(THESIS_PLANT)?,
+        find_model(THESIS_CONTROLLER)?,
+        find_model(DEFAULT_NOMINAL)?,
+    );
+    let config = study::map::MapConfig {
+        seed: args.run.seed,
+        ..study::map::MapConfig::default()
+    };
+    let out = &args.run.out;
+    crate::output::create_folder(out).with_context(|| format!("creating {}", out.display()))?;
+    let bar = progress_bar();
+    let report = |done: usize, total: usize, stage: &str| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(stage.to_string());
+    };
+    let cells = study::map::run_map(plant, exact, thesis, &config, &report)?;
+    bar.finish_and_clear();
+    let markdown = crate::study_report::write_map(&cells, &config, out)?;
+    match args.run.format {
+        Format::Json => println!("{}", serde_json::to_string_pretty(&cells)?),
+        Format::Text => {
+            println!("{markdown}");
+            println!("Map written to {}", out.display());
+        }
+    }
+    Ok(())
 }
 
 /// The study's situation (see `ReproduceArgs::situation`).
@@ -115,6 +153,9 @@ const THESIS_PLANT: &str = "kinova_gen3_lite_urdf_plant";
 const THESIS_CONTROLLER: &str = "kinova_gen3_lite_3dof_locked";
 
 pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
+    if args.map {
+        return reproduce_map(args);
+    }
     let default_plant = match args.situation {
         Situation::Virtual => DEFAULT_PLANT,
         Situation::Thesis => THESIS_PLANT,
@@ -544,6 +585,15 @@ pub struct PredictArgs {
 pub fn predict(args: &PredictArgs) -> Result<()> {
     let network = Mlp::load(&args.nn)?;
     let dof = network.n_outputs();
+    if network.n_inputs() != 3 * dof {
+        bail!(
+            "{}: the network maps {} inputs to {dof} torques, not a network of joint states \
+             (q, qd and qdd of each joint: {} inputs)",
+            args.nn.display(),
+            network.n_inputs(),
+            3 * dof
+        );
+    }
     let options = ReadOptions {
         units: args.angles.into(),
         dof: Some(dof),
@@ -641,6 +691,12 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
     };
     let on_disk = std::fs::read_to_string(&toml)
         .with_context(|| format!("{}: cannot read", toml.display()))?;
+    if let Err(e) = codegen::Description::parse(&on_disk, model.name(), &toml) {
+        bail!(
+            "--toml {}: not a robot description this tool reads: {e}",
+            toml.display()
+        );
+    }
     if on_disk.replace("\r\n", "\n") != model.description().replace("\r\n", "\n") {
         bail!(
             "{}: the file is not the description `{}` was built from (an earlier --apply \

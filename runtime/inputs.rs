@@ -66,6 +66,12 @@ pub fn shell_word(word: &str) -> String {
 pub fn parse_mapping(text: &str) -> Result<(String, String), String> {
     match text.split_once('=') {
         Some((from, to)) if !from.is_empty() && !to.is_empty() => {
+            if !crate::trajectory::is_contract_column(to) {
+                return Err(format!(
+                    "`{to}` is not a column of the contract (t, q1..qN, qd1..qdN, \
+                     qdd1..qddN, tau1..tauN)"
+                ));
+            }
             Ok((from.to_string(), to.to_string()))
         }
         _ => Err(format!(

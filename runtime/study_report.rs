@@ -251,3 +251,88 @@ fn mse_bars(result: &StudyResult, plots: &Path) -> Result<()> {
     )?;
     Ok(())
 }
+
+/// Writes the map's table (Markdown), JSON and heat map below `out`.
+pub fn write_map(
+    cells: &[crate::study::map::Cell],
+    config: &crate::study::map::MapConfig,
+    out: &Path,
+) -> Result<String> {
+    use crate::report::plot::{HeatPanel, heat_map};
+    use crate::study::map::MAP_MODELS;
+    let json = serde_json::json!({ "config": config, "cells": cells });
+    crate::output::write(
+        &out.join("map.json"),
+        serde_json::to_string_pretty(&json)?.as_bytes(),
+    )
+    .with_context(|| format!("writing {}", out.join("map.json").display()))?;
+    let markdown = map_markdown(cells, config);
+    crate::output::write(&out.join("map.md"), markdown.as_bytes())
+        .with_context(|| format!("writing {}", out.join("map.md").display()))?;
+    let panels: Vec<HeatPanel> = config
+        .noise_scales
+        .iter()
+        .map(|&noise| HeatPanel {
+            title: format!("sensor noise x{noise}"),
+            row_title: "rows: analytical error x thesis's".into(),
+            column_title: "columns: training trajectories".into(),
+            rows: config.error_scales.iter().map(|e| format!("{e}")).collect(),
+            columns: config.train_counts.iter().map(|n| n.to_string()).collect(),
+            cells: config
+                .error_scales
+                .iter()
+                .map(|&e| {
+                    config
+                        .train_counts
+                        .iter()
+                        .filter_map(|&n| {
+                            let cell = cells.iter().find(|c| {
+                                c.noise_scale == noise && c.error_scale == e && c.train == n
+                            })?;
+                            let best = MAP_MODELS.iter().position(|m| *m == cell.best)?;
+                            let text = format!("{:.2}", cell.sdnn_over_analytical.mean);
+                            Some((best, text))
+                        })
+                        .collect()
+                })
+                .collect(),
+        })
+        .collect();
+    heat_map(
+        out.join("map.svg"),
+        "Best model per cell (colour); SDNN / analytical test MSE (text)",
+        &panels,
+        &MAP_MODELS,
+    )?;
+    Ok(markdown)
+}
+
+fn map_markdown(
+    cells: &[crate::study::map::Cell],
+    config: &crate::study::map::MapConfig,
+) -> String {
+    let spread = |s: &crate::study::map::Spread| format!("{:.3} ± {:.3}", s.mean, s.std);
+    let mut text = format!(
+        "**When SDNN helps: test MSE (N m^2, mean of joints) and ratios, mean ± std over {} seeds x {} splits**\n\n\
+         | noise | error | train | best | analytical | NN measured | SDNN | hybrid | SDNN/analytical | SDNN/NN measured | hybrid/analytical |\n\
+         | ---: | ---: | ---: | :--- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n",
+        config.seeds, config.splits
+    );
+    for c in cells {
+        text.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            c.noise_scale,
+            c.error_scale,
+            c.train,
+            c.best,
+            spread(&c.analytical),
+            spread(&c.nn_measured),
+            spread(&c.sdnn),
+            spread(&c.hybrid),
+            spread(&c.sdnn_over_analytical),
+            spread(&c.sdnn_over_nn_measured),
+            spread(&c.hybrid_over_analytical),
+        ));
+    }
+    text
+}

@@ -512,6 +512,11 @@ enum Column {
     Joint(Channel, usize),
 }
 
+/// Whether `name` is a column of the CSV contract (`t`, `q3`, `tau1`, ...).
+pub fn is_contract_column(name: &str) -> bool {
+    parse_column_name(name).is_some()
+}
+
 /// Parses a contract name such as `qd3` into (channel, 0-based joint).
 fn parse_column_name(name: &str) -> Option<Column> {
     if name == "t" {

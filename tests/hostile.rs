@@ -407,3 +407,21 @@ fn endless_lines_gaps_and_devices_are_handled() {
         "have the same file name",
     );
 }
+
+#[test]
+fn a_column_target_outside_the_contract_and_a_malformed_network_are_named() {
+    let dir = Dir::new();
+    let states = dir.write("s.csv", STATES);
+    refused(
+        &sdnn(&[
+            "tau",
+            "--model",
+            "planar_2link",
+            "--input",
+            states.to_str().unwrap(),
+            "--column",
+            "q1=bogus",
+        ]),
+        "`bogus` is not a column of the contract",
+    );
+}

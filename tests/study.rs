@@ -372,3 +372,55 @@ fn the_panda_log_needs_no_flags() {
         );
     }
 }
+
+/// The map on a tiny grid: every cell has its four models and ratios, and
+/// the table, JSON and heat map are written.
+#[test]
+fn a_small_map_fills_every_cell_and_writes_its_files() {
+    use sdnn::study::map::{MapConfig, run_map};
+    let config = MapConfig {
+        error_scales: vec![0.0, 2.0],
+        train_counts: vec![2],
+        noise_scales: vec![1.0],
+        seeds: 1,
+        splits: 2,
+        test: 1,
+        duration: 6.0,
+        max_epochs: 2,
+        ..MapConfig::default()
+    };
+    let model = |name| sdnn::model(name).unwrap();
+    let cells = run_map(
+        model("kinova_gen3_lite_urdf_plant"),
+        model("kinova_gen3_lite_3dof_locked"),
+        model("kinova_gen3_lite_3dof"),
+        &config,
+        &|_, _, _| {},
+    )
+    .unwrap();
+    assert_eq!(cells.len(), 2);
+    for c in &cells {
+        for s in [
+            c.analytical,
+            c.nn_measured,
+            c.sdnn,
+            c.hybrid,
+            c.sdnn_over_analytical,
+        ] {
+            assert!(
+                s.mean.is_finite() && s.mean > 0.0 && s.std.is_finite(),
+                "{c:?}"
+            );
+        }
+    }
+    // Twice the thesis's error is worse than exact rigid-body dynamics.
+    assert!(
+        cells[1].analytical.mean > cells[0].analytical.mean,
+        "{cells:?}"
+    );
+    let dir = Dir::new();
+    sdnn::study_report::write_map(&cells, &config, dir.path()).unwrap();
+    for file in ["map.md", "map.json", "map.svg"] {
+        assert!(dir.path().join(file).exists(), "{file} missing");
+    }
+}

@@ -30,7 +30,10 @@
 
 mod bar;
 mod draw;
+mod heat;
 mod prep;
+
+pub use heat::HeatPanel;
 
 use std::path::Path;
 
@@ -200,6 +203,20 @@ pub fn bar_chart(path: impl AsRef<Path>, chart: &BarChart) -> Result<PlotReport,
         bar::draw(root, chart, &prepared)
     })?;
     Ok(prepared.report())
+}
+
+/// Draws category-map panels side by side with a legend of `categories`
+/// (cell colours) to an SVG file at `path` (written atomically).
+pub fn heat_map(
+    path: impl AsRef<Path>,
+    title: &str,
+    panels: &[HeatPanel],
+    categories: &[&str],
+) -> Result<(), ReportError> {
+    let width = 40 + 420 * panels.len().max(1) as u32;
+    render_svg(path.as_ref(), (width, 480), |root| {
+        heat::draw(root, title, panels, categories)
+    })
 }
 
 /// Colour of the `index`-th series or model (Tableau 10 palette; repeats after 10).

@@ -26,11 +26,12 @@ use crate::sim::reference::{
 use crate::sim::simulate::{SimConfig, open_loop, simulate};
 use crate::trajectory::{Trajectory, write_csv};
 
+pub mod map;
 mod recording;
 mod training;
 
 pub use recording::{limits, record_trajectory, trajectory_seed};
-use recording::{open_loop_evaluation, record};
+use recording::{open_loop_evaluation, record, record_noisy};
 use training::{Job, Recipe, Trained, jobs, train_all};
 
 /// Everything the study needs; `Default` is the thesis's setup.

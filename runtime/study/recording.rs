@@ -99,7 +99,7 @@ pub fn record_trajectory(
 }
 
 /// [`record_trajectory`] with the sensor noise scaled by `noise_scale`.
-fn record_noisy(
+pub(super) fn record_noisy(
     plant: &dyn Dynamics,
     controller: &dyn Dynamics,
     waypoints: &WaypointConfig,
