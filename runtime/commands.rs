@@ -156,15 +156,33 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
     if args.map {
         return reproduce_map(args);
     }
-    let default_plant = match args.situation {
-        Situation::Virtual => DEFAULT_PLANT,
-        Situation::Thesis => THESIS_PLANT,
-    };
-    let plant = find_model(args.plant.as_deref().unwrap_or(default_plant))?;
+    if args.duration < MIN_STUDY_SECONDS {
+        bail!(
+            "--duration {} s: a study's trajectories need at least {MIN_STUDY_SECONDS} s (the \
+             thesis preprocessing keeps every 10th sample and averages 40 of them)",
+            args.duration
+        );
+    }
+    let recorded = args.trajectories as f64 * args.duration;
+    if recorded > MOST_SIMULATED_SECONDS {
+        bail!(
+            "--trajectories {} x --duration {} s is {recorded} s of recordings, more than one \
+             study records ({MOST_SIMULATED_SECONDS} s): record fewer or shorter trajectories",
+            args.trajectories,
+            args.duration
+        );
+    }
     let nominal = find_model(args.nominal.as_deref().unwrap_or(DEFAULT_NOMINAL))?;
-    let controller = match args.situation {
-        Situation::Virtual => nominal,
-        Situation::Thesis => find_model(THESIS_CONTROLLER)?,
+    // The controller knows the arm: in the default situation the arm is the
+    // nominal model (plus effects it does not know); in the thesis's it is
+    // Kinova's rigid body, or the plant given.
+    let (plant, controller) = match (args.situation, args.plant.as_deref()) {
+        (Situation::Virtual, plant) => (find_model(plant.unwrap_or(DEFAULT_PLANT))?, nominal),
+        (Situation::Thesis, None) => (find_model(THESIS_PLANT)?, find_model(THESIS_CONTROLLER)?),
+        (Situation::Thesis, Some(plant)) => {
+            let plant = find_model(plant)?;
+            (plant, plant)
+        }
     };
     let config = StudyConfig {
         trajectories: args.trajectories,
@@ -277,7 +295,10 @@ pub struct SimulateArgs {
     pub nominal: String,
 }
 
-/// Most recorded seconds one `simulate` run writes (10 h, about 2 GB of
+/// Shortest trajectory of a study, s.
+const MIN_STUDY_SECONDS: f64 = 1.0;
+
+/// Most recorded seconds one `simulate` run writes, or one study records (10 h, about 2 GB of
 /// CSV at 1 kHz for 3 joints): beyond it, run it several times.
 const MOST_SIMULATED_SECONDS: f64 = 36_000.0;
 
@@ -697,7 +718,8 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
             toml.display()
         );
     }
-    if on_disk.replace("\r\n", "\n") != model.description().replace("\r\n", "\n") {
+    let plain = |text: &str| text.trim_start_matches('\u{feff}').replace("\r\n", "\n");
+    if plain(&on_disk) != plain(model.description()) {
         bail!(
             "{}: the file is not the description `{}` was built from (an earlier --apply \
              or an edit since the build), so applying this diagnosis would count its effects \

@@ -2,10 +2,13 @@
 //! torques are linear in the model's parameters, tau = Y(q, qd, qdd) theta
 //! (the generated regressor: ten inertial parameters per link and the joint
 //! effects), so least squares on recordings gives the parameters that fit
-//! them best, the model's kinematics kept. Parameters the data cannot tell
-//! apart (base-parameter combinations, unexcited columns) get the minimum-
-//! norm solution: the pseudo-inverse of the information matrix, with
-//! eigenvalues below [`RELATIVE_TOLERANCE`] of the largest taken as zero.
+//! them best, the model's kinematics kept. The fit is a correction of the
+//! model's own parameters (its description is the prior, as CAD values are
+//! for a real arm): directions of the parameters the data do not determine
+//! (base-parameter combinations, unexcited columns, short recordings) keep
+//! the model's values, through the minimum-norm correction: the
+//! pseudo-inverse of the information matrix, eigenvalues below
+//! [`RELATIVE_TOLERANCE`] of the largest taken as zero.
 
 use anyhow::{Context, Result, bail};
 use nalgebra::{DMatrix, DVector};
@@ -15,7 +18,7 @@ use crate::trajectory::Trajectory;
 
 /// Relative eigenvalue of the (column-scaled) information matrix below which
 /// a direction of the parameters is taken as unidentified.
-pub const RELATIVE_TOLERANCE: f64 = 1e-10;
+pub const RELATIVE_TOLERANCE: f64 = 1e-4;
 
 /// A model's regressor with parameters fitted to recordings.
 pub struct Identified<'a> {
@@ -29,7 +32,8 @@ impl<'a> Identified<'a> {
     /// Least squares of the measured torques of `recordings` (which need
     /// accelerations: preprocessed) on `model`'s regressor.
     pub fn fit(model: &'a dyn Dynamics, recordings: &[&Trajectory]) -> Result<Identified<'a>> {
-        let p = model.parameters().len();
+        let prior = DVector::from_column_slice(model.parameters());
+        let p = prior.len();
         let (mut information, mut moment) = (DMatrix::zeros(p, p), DVector::zeros(p));
         for traj in recordings {
             let qdd = traj
@@ -39,12 +43,17 @@ impl<'a> Identified<'a> {
                 let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
                 let y = model.regressor(&row(traj.q()), &row(traj.qd()), &row(qdd))?;
                 let tau = DVector::from_iterator(y.nrows(), traj.tau().row(s).iter().copied());
+                let unexplained = tau - &y * &prior;
                 information.gemm_tr(1.0, &y, &y, 1.0);
-                moment.gemv_tr(1.0, &y, &tau, 1.0);
+                moment.gemv_tr(1.0, &y, &unexplained, 1.0);
             }
         }
-        let (theta, rank) = pseudo_solve(information, &moment)?;
-        Ok(Identified { model, theta, rank })
+        let (correction, rank) = pseudo_solve(information, &moment)?;
+        Ok(Identified {
+            model,
+            theta: prior + correction,
+            rank,
+        })
     }
 
     /// The identified model's torques along `traj` (samples x joints).

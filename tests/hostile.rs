@@ -85,6 +85,19 @@ fn huge_counts_and_widths_are_refused_while_parsing() {
     }
     let run = sdnn(&["reproduce", "--duration", "nan"]);
     refused(&run, "finite");
+    // Work beyond one study's budget, or too short to preprocess, is
+    // refused before anything is recorded.
+    let many = [
+        "reproduce",
+        "--trajectories",
+        "1000",
+        "--train",
+        "999",
+        "--duration",
+        "3600",
+    ];
+    refused(&sdnn(&many), "more than one study records");
+    refused(&sdnn(&["reproduce", "--duration", "0.5"]), "at least 1 s");
 }
 
 #[test]

@@ -176,7 +176,15 @@ pub fn run_models(
 ) -> Result<StudyResult> {
     let Models { plant, nominal, .. } = models;
     check(config, plant, nominal)?;
-    check(config, models.controller, nominal)?;
+    if models.controller.dof() != plant.dof() {
+        bail!(
+            "the controller's model `{}` has {} joints but plant `{}` has {}",
+            models.controller.name(),
+            models.controller.dof(),
+            plant.name(),
+            plant.dof()
+        );
+    }
     crate::output::create_folder(out)
         .and_then(|()| std::fs::create_dir_all(out.join("data")))
         .with_context(|| format!("creating {}", out.display()))?;

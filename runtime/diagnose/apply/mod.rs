@@ -207,7 +207,9 @@ fn add_shaped(
     let existing = joint_effect(doc, joint, key);
     if present && existing != value {
         bail!(
-            "joint `{joint}` already has this effect with {key} = {existing}; the diagnosis              found more of it with {key} = {value}: one term cannot hold both, edit the              description by hand"
+            "joint `{joint}` already has this effect with {key} = {existing}; the diagnosis \
+             found more of it with {key} = {value}: one term cannot hold both, edit the \
+             description by hand"
         );
     }
     for &(k, amplitude) in amplitudes {
