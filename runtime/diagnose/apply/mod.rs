@@ -443,10 +443,15 @@ pub fn apply_to_file(
     }
     crate::output::replace_input(path, updated.as_bytes())
         .with_context(|| format!("{}: cannot replace", path.display()))?;
-    Ok(Applied {
-        backup,
-        changes: changed_lines(&source, &updated),
-    })
+    let mut changes = changed_lines(&source, &updated);
+    let crlf = source.matches("\r\n").count();
+    let lf = source.matches('\n').count() - crlf;
+    if crlf > 0 && lf > 0 {
+        changes.push(format!(
+            "(the file mixed line ends; its {lf} LF line ends are CRLF now, as its other {crlf})"
+        ));
+    }
+    Ok(Applied { backup, changes })
 }
 
 /// The lines that differ between `old` and `new` as `- line` and `+ line`
