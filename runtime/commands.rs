@@ -98,6 +98,11 @@ pub struct ReproduceArgs {
     /// torque 0.05 N m, velocity 0.02 rad/s, angle 1e-5 rad), 0-10.
     #[arg(long, default_value_t = 1.0, value_parser = ranges::real(0.0, 10.0, false, "noise beyond 10x the sensor's is not a measurement"))]
     pub noise_scale: f64,
+    /// Train/test splits of the recorded trajectories (1-20); every model's
+    /// spread is over its seeds and the splits [default: 1; 3 in the thesis
+    /// situation].
+    #[arg(long, value_parser = ranges::integer(1, 20, "run the study again with another --seed"))]
+    pub splits: Option<usize>,
     /// Instead of one study, map when SDNN helps: a grid over the
     /// analytical model's error (0, 0.5, 1, 2 x the thesis's), training
     /// trajectories (2, 5, 10, 20) and sensor noise (0.5, 1, 2 x), 5 seeds x
@@ -151,6 +156,8 @@ pub enum Situation {
 /// The thesis situation's plant and controller model.
 const THESIS_PLANT: &str = "kinova_gen3_lite_urdf_plant";
 const THESIS_CONTROLLER: &str = "kinova_gen3_lite_3dof_locked";
+/// Train/test splits of the thesis situation's study.
+const THESIS_SPLITS: usize = 3;
 
 pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
     if args.map {
@@ -189,6 +196,10 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
         train: args.train,
         duration: args.duration,
         noise_scale: args.noise_scale,
+        splits: args.splits.unwrap_or(match args.situation {
+            Situation::Virtual => 1,
+            Situation::Thesis => THESIS_SPLITS,
+        }),
         ..args.run.config()?
     };
     let models = study::Models {

@@ -43,11 +43,20 @@ pub fn comparison(result: &StudyResult) -> Comparison {
         })
         .collect();
     Comparison {
-        title: format!(
-            "Test MSE on {} held-out trajectories, {} seeds per network",
-            result.test_trajectories.len(),
-            result.config.seeds
-        ),
+        title: if result.config.splits > 1 {
+            format!(
+                "Test MSE on {} held-out trajectories, {} seeds per network x {} train/test splits",
+                result.test_trajectories.len(),
+                result.config.seeds,
+                result.config.splits
+            )
+        } else {
+            format!(
+                "Test MSE on {} held-out trajectories, {} seeds per network",
+                result.test_trajectories.len(),
+                result.config.seeds
+            )
+        },
         unit: "N m^2".into(),
         rows,
     }

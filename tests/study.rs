@@ -100,6 +100,15 @@ fn the_thesis_situation_runs_and_its_analytical_model_is_worse() {
     };
     assert!(mse(study::IDENTIFIED) < mse(study::ANALYTICAL), "{json}");
     assert!(mse(study::IDENTIFIED_HYBRID).is_finite());
+    // Three train/test splits: a model has one run per split, a network
+    // one per seed and split, and the spread is over them.
+    assert_eq!(json["config"]["splits"], 3);
+    let runs = |k: usize| json["models"][k]["mse_per_seed"].as_array().unwrap().len();
+    assert_eq!((runs(0), runs(2)), (3, 3), "{json}");
+    assert!(
+        json["models"][0]["mse_std"].as_f64().unwrap() > 0.0,
+        "{json}"
+    );
 }
 
 /// The plant (truth) model explains data recorded on it better than the

@@ -32,7 +32,7 @@ mod training;
 
 pub use recording::{limits, record_trajectory, trajectory_seed};
 use recording::{open_loop_evaluation, record, record_noisy};
-use training::{Job, Recipe, Trained, jobs, train_all};
+use training::{Job, Recipe, Trained, jobs, save_networks, train_all};
 
 /// Everything the study needs; `Default` is the thesis's setup.
 #[derive(Debug, Clone, Serialize)]
@@ -65,6 +65,9 @@ pub struct StudyConfig {
     /// Factor on the virtual robot's sensor noise (torque 0.05 N m,
     /// velocity 0.02 rad/s, angle 1e-5 rad standard deviations).
     pub noise_scale: f64,
+    /// Train/test splits of the recorded trajectories; every model's spread
+    /// is over its seeds and these splits.
+    pub splits: usize,
 }
 
 impl Default for StudyConfig {
@@ -87,6 +90,7 @@ impl Default for StudyConfig {
             max_velocity: 1.0,
             max_acceleration: 2.0,
             noise_scale: 1.0,
+            splits: 1,
         }
     }
 }
@@ -284,19 +288,26 @@ fn analyse(
     out: &Path,
     progress: Progress<'_>,
 ) -> Result<StudyResult> {
-    let analytical = analytical_result(nominal, &data)?;
-    let training: Vec<&Trajectory> = data.train.iter().map(|&k| &data.processed[k]).collect();
-    let identified = Identified::fit(nominal, &training)?;
-    let identified_result = identified_result(&identified, &data)?;
     let jobs = jobs(config);
-    let networks = train_all(nominal, &identified, &data, config, &jobs, out, progress)?;
-    let mut models = vec![analytical, identified_result];
-    for (job, seeds) in jobs.iter().zip(&networks) {
-        models.push(summarize(
-            &job.name,
-            seeds.iter().map(|(mse, _)| mse.clone()).collect(),
-        ));
+    let (mut runs, identified, networks) = split_runs(nominal, &data, config, &jobs, progress)?;
+    save_networks(&jobs, &networks, out)?;
+    // Further train/test splits of the recorded trajectories (a simulated
+    // study; measured recordings are cut in time once).
+    let splits = if plant.is_some() { config.splits } else { 1 };
+    for split in 1..splits {
+        let other = data.resplit(config, split);
+        let (more, _, _) = split_runs(nominal, &other, config, &jobs, progress)?;
+        for (all, extra) in runs.iter_mut().zip(more) {
+            all.extend(extra);
+        }
     }
+    let names = [ANALYTICAL.to_string(), IDENTIFIED.to_string()]
+        .into_iter()
+        .chain(jobs.iter().map(|j| j.name.clone()));
+    let mut models: Vec<ModelResult> = names
+        .zip(runs)
+        .map(|(name, per_run)| summarize(&name, per_run))
+        .collect();
     if let Some(plant) = plant {
         open_loop_evaluation(
             plant,
@@ -331,6 +342,33 @@ fn analyse(
     };
     crate::study_report::write(&result, &figures, out)?;
     Ok(result)
+}
+
+/// Per model, per run, the per-joint test MSE.
+type Runs = Vec<Vec<Vec<f64>>>;
+
+/// Per model (analytical, identified, then the jobs), the per-joint test
+/// MSE of each run on one split (one run for the models, one per seed for
+/// the networks); the identified model and the networks of this split.
+fn split_runs<'a>(
+    nominal: &'a dyn Dynamics,
+    data: &Data,
+    config: &StudyConfig,
+    jobs: &[Job],
+    progress: Progress<'_>,
+) -> Result<(Runs, Identified<'a>, Trained)> {
+    let analytical = analytical_mse(nominal, data)?;
+    let training: Vec<&Trajectory> = data.train.iter().map(|&k| &data.processed[k]).collect();
+    let identified = Identified::fit(nominal, &training)?;
+    let fitted = identified_mse(&identified, data)?;
+    let networks = train_all(nominal, &identified, data, config, jobs, progress)?;
+    let mut runs = vec![vec![analytical], vec![fitted]];
+    runs.extend(
+        networks
+            .iter()
+            .map(|seeds| seeds.iter().map(|(mse, _)| mse.clone()).collect()),
+    );
+    Ok((runs, identified, networks))
 }
 
 fn check(config: &StudyConfig, plant: &dyn Dynamics, nominal: &dyn Dynamics) -> Result<()> {
@@ -383,7 +421,7 @@ pub fn stack(blocks: Vec<DMatrix<f64>>) -> DMatrix<f64> {
     out
 }
 
-fn analytical_result(nominal: &dyn Dynamics, data: &Data) -> Result<ModelResult> {
+fn analytical_mse(nominal: &dyn Dynamics, data: &Data) -> Result<Vec<f64>> {
     let pairs = data
         .test
         .iter()
@@ -394,16 +432,16 @@ fn analytical_result(nominal: &dyn Dynamics, data: &Data) -> Result<ModelResult>
             ))
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(summarize(ANALYTICAL, vec![pooled_mse(&pairs)]))
+    Ok(pooled_mse(&pairs))
 }
 
-fn identified_result(identified: &Identified, data: &Data) -> Result<ModelResult> {
+fn identified_mse(identified: &Identified, data: &Data) -> Result<Vec<f64>> {
     let pairs = data
         .test
         .iter()
         .map(|&k| Ok((identified.torques(&data.processed[k])?, &data.processed[k])))
         .collect::<Result<Vec<_>>>()?;
-    Ok(summarize(IDENTIFIED, vec![pooled_mse(&pairs)]))
+    Ok(pooled_mse(&pairs))
 }
 
 /// Analytical-model test MSE with the thesis's moving average and with a

@@ -63,16 +63,7 @@ pub(super) fn record(
         raw.push(measured);
         references.push(reference);
     }
-    let mut order: Vec<usize> = (0..config.trajectories).collect();
-    order.shuffle(&mut ChaCha8Rng::seed_from_u64(seeds::derive(
-        config.seed,
-        Purpose::Split,
-        0,
-    )));
-    let (train, test) = order.split_at(config.train);
-    let (mut train, mut test) = (train.to_vec(), test.to_vec());
-    train.sort_unstable();
-    test.sort_unstable();
+    let (train, test) = split(config, 0);
     Ok(Data {
         raw,
         processed,
@@ -80,6 +71,35 @@ pub(super) fn record(
         train,
         test,
     })
+}
+
+/// Train/test split `index` of the recorded trajectories (sorted indices).
+pub(super) fn split(config: &StudyConfig, index: usize) -> (Vec<usize>, Vec<usize>) {
+    let mut order: Vec<usize> = (0..config.trajectories).collect();
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(seeds::derive(
+        config.seed,
+        Purpose::Split,
+        index as u64,
+    )));
+    let (train, test) = order.split_at(config.train);
+    let (mut train, mut test) = (train.to_vec(), test.to_vec());
+    train.sort_unstable();
+    test.sort_unstable();
+    (train, test)
+}
+
+impl Data {
+    /// The same recordings under train/test split `index`.
+    pub(super) fn resplit(&self, config: &StudyConfig, index: usize) -> Data {
+        let (train, test) = split(config, index);
+        Data {
+            raw: self.raw.clone(),
+            processed: self.processed.clone(),
+            references: self.references.clone(),
+            train,
+            test,
+        }
+    }
 }
 
 /// The seed of trajectory `k` of a recording session.

@@ -180,7 +180,6 @@ pub(super) fn train_all(
     data: &Data,
     config: &StudyConfig,
     jobs: &[Job],
-    out: &Path,
     progress: Progress<'_>,
 ) -> Result<Trained> {
     let sets = training_sets(nominal, identified, data, config)?;
@@ -242,8 +241,13 @@ pub(super) fn train_all(
         }
         by_job.last_mut().expect("pushed above").push(result);
     }
+    Ok(by_job)
+}
+
+/// Saves each job's seed-0 network below `out/networks`.
+pub(super) fn save_networks(jobs: &[Job], networks: &Trained, out: &Path) -> Result<()> {
     std::fs::create_dir_all(out.join("networks"))?;
-    for (job, seeds) in jobs.iter().zip(&by_job) {
+    for (job, seeds) in jobs.iter().zip(networks) {
         let file = out
             .join("networks")
             .join(format!("{}.json", slug(&job.name)));
@@ -252,5 +256,5 @@ pub(super) fn train_all(
             .save(&file)
             .with_context(|| format!("saving {}", file.display()))?;
     }
-    Ok(by_job)
+    Ok(())
 }
