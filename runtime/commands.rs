@@ -134,7 +134,7 @@ fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
     };
     let cells = study::map::run_map(plant, exact, thesis, &config, &report)?;
     bar.finish_and_clear();
-    let markdown = crate::study_report::write_map(&cells, &config, out)?;
+    let markdown = crate::study::report::write_map(&cells, &config, out)?;
     match args.run.format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&cells)?),
         Format::Text => {
@@ -230,7 +230,7 @@ fn run_study(
     match format {
         Format::Json => println!("{}", serde_json::to_string_pretty(&result)?),
         Format::Text => {
-            println!("{}", crate::study_report::markdown(&result));
+            println!("{}", crate::study::report::markdown(&result));
             println!("Results written to {}", out.display());
         }
     }

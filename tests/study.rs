@@ -428,7 +428,7 @@ fn a_small_map_fills_every_cell_and_writes_its_files() {
         "{cells:?}"
     );
     let dir = Dir::new();
-    sdnn::study_report::write_map(&cells, &config, dir.path()).unwrap();
+    sdnn::study::report::write_map(&cells, &config, dir.path()).unwrap();
     for file in ["map.md", "map.json", "map.svg"] {
         assert!(dir.path().join(file).exists(), "{file} missing");
     }

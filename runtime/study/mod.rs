@@ -28,6 +28,7 @@ use crate::trajectory::{Trajectory, write_csv};
 
 pub mod map;
 mod recording;
+pub mod report;
 mod training;
 
 pub use recording::{limits, record_trajectory, trajectory_seed};
@@ -333,14 +334,14 @@ fn analyse(
         .zip(&networks)
         .map(|(j, n)| (j.name.clone(), &n[0].1))
         .collect();
-    let figures = crate::study_report::Figures {
+    let figures = crate::study::report::Figures {
         raw: &data.raw,
         processed: &data.processed,
         nominal,
         networks: &trained,
         residual: "Hybrid (analytical + NN residual)",
     };
-    crate::study_report::write(&result, &figures, out)?;
+    crate::study::report::write(&result, &figures, out)?;
     Ok(result)
 }
 

@@ -6,12 +6,12 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use nalgebra::DMatrix;
 
+use super::{StudyResult, slug};
 use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
 use crate::mlp::{Dataset, Mlp};
 use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot};
 use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv, write_markdown};
-use crate::study::{StudyResult, slug};
 use crate::trajectory::Trajectory;
 
 /// What the plots are drawn from.
