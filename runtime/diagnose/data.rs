@@ -26,6 +26,13 @@ pub(crate) struct Stacked {
     pub(super) dof: usize,
 }
 
+impl Stacked {
+    /// The rows of joint `joint` (rows are (sample, joint) pairs).
+    pub(super) fn rows_of(&self, joint: usize) -> impl Iterator<Item = usize> + Clone + '_ {
+        (joint..self.residual.len()).step_by(self.dof)
+    }
+}
+
 /// The same recording passed twice would leak into its own held-out fold.
 pub(super) fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<()> {
     for (a, first) in trajectories.iter().enumerate() {

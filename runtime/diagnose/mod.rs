@@ -336,7 +336,7 @@ fn offset_or_asymmetry(
             continue;
         }
         // The asymmetry's column is 1 while moving, 0 at rest (filtered).
-        let rows = (j..data.residual.len()).step_by(data.dof);
+        let rows = data.rows_of(j);
         let count = rows.clone().count().max(1) as f64;
         let resting = rows.filter(|&r| dry.columns[0][r] < 0.5).count() as f64 / count;
         let (this, other) = if offset {

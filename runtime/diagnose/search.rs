@@ -47,7 +47,7 @@ impl Nuisance {
     /// independent content are dropped), and the residual with them
     /// projected out.
     pub(super) fn new(data: &Stacked, j: usize, columns: &[&DVector<f64>]) -> Nuisance {
-        let rows = joint_rows(data, j);
+        let rows = data.rows_of(j).collect::<Vec<_>>();
         let restricted = DMatrix::from_fn(rows.len(), columns.len(), |i, k| columns[k][rows[i]]);
         let basis = orthonormal_basis(restricted);
         let mut nuisance = Nuisance {
@@ -144,10 +144,9 @@ pub(super) fn ripple_cycles(
     angle: &DVector<f64>,
     nuisance: &Nuisance,
 ) -> Option<(f64, usize)> {
-    let rows = joint_rows(data, j);
-    let (low, high) = rows
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &r| {
+    let (low, high) = data
+        .rows_of(j)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
             (l.min(angle[r]), h.max(angle[r]))
         });
     let travelled = high - low;
@@ -168,10 +167,6 @@ pub(super) fn ripple_cycles(
         .min_by(|x, y| x.1.total_cmp(&y.1))?;
     // Either column may pass the significance test: two tests per harmonic.
     Some((best.0, 2 * (MOST_CYCLES - first + 1)))
-}
-
-fn joint_rows(data: &Stacked, j: usize) -> Vec<usize> {
-    (j..data.residual.len()).step_by(data.dof).collect()
 }
 
 #[cfg(test)]

@@ -68,15 +68,15 @@ pub(super) fn unexplained(
     regimes.dedup();
     (0..data.dof)
         .filter_map(|j| {
-            let total: f64 = rows(data, j).map(|r| after[r] * after[r]).sum();
-            let count = rows(data, j).count();
+            let total: f64 = data.rows_of(j).map(|r| after[r] * after[r]).sum();
+            let count = data.rows_of(j).count();
             // Below a micro-newton-metre nothing is measurable structure.
             if count == 0 || total / (count as f64) < QUIET * QUIET {
                 return None;
             }
             let share = |features: &[usize]| 1.0 - cv_sse(data, after, j, features) / total;
             let predictable = share(&all);
-            let torque: f64 = rows(data, j).map(|r| data.measured[r].powi(2)).sum();
+            let torque: f64 = data.rows_of(j).map(|r| data.measured[r].powi(2)).sum();
             if predictable < UNEXPLAINED_GAIN || predictable * total < (MEASURABLE * MEASURABLE) * torque {
                 return None;
             }
@@ -138,17 +138,13 @@ pub(super) fn unexplained(
 fn slow_share(data: &Stacked, after: &[f64], j: usize, bandwidth: f64, rate: f64) -> Option<f64> {
     let filter = crate::preprocess::ZeroPhaseLowPass::new(bandwidth, 1.0 / rate).ok()?;
     let (mut slow, mut total) = (0.0, 0.0);
-    let rows: Vec<usize> = rows(data, j).collect();
+    let rows: Vec<usize> = data.rows_of(j).collect();
     for segment in rows.chunk_by(|&a, &b| data.group[a] == data.group[b]) {
         let x: Vec<f64> = segment.iter().map(|&r| after[r]).collect();
         slow += filter.apply(&x).iter().map(|v| v * v).sum::<f64>();
         total += x.iter().map(|v| v * v).sum::<f64>();
     }
     (total > 0.0).then(|| (slow / total).min(1.0))
-}
-
-fn rows(data: &Stacked, joint: usize) -> impl Iterator<Item = usize> + Clone + '_ {
-    (joint..data.residual.len()).step_by(data.dof)
 }
 
 /// Leave-one-segment-out SSE of `after` on joint `j` fitted by `features`.
@@ -158,7 +154,7 @@ fn cv_sse(data: &Stacked, after: &[f64], j: usize, features: &[usize]) -> f64 {
     let mut xx = vec![DMatrix::<f64>::zeros(k, k); groups];
     let mut xy = vec![DVector::<f64>::zeros(k); groups];
     let mut yy = vec![0.0; groups];
-    for r in rows(data, j) {
+    for r in data.rows_of(j) {
         let g = data.group[r];
         let x = DVector::from_iterator(k, features.iter().map(|&f| data.generic[f][r]));
         xx[g].ger(1.0, &x, &x, 1.0);

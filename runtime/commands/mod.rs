@@ -1,0 +1,432 @@
+//! The pipeline's stage commands; the study (`reproduction`) and the
+//! diagnosis (`diagnosis`) have their own files.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use nalgebra::DMatrix;
+
+use crate::args::{AngleArg, Format, find_model};
+use crate::corrections::Corrections;
+use crate::diagnose::Diagnosis;
+use crate::dynamics::Dynamics;
+use crate::dynamics::model_torques;
+use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed, shell_word};
+use crate::mlp::{Dataset, Mlp};
+use crate::preprocess::Compared;
+use crate::ranges;
+use crate::study::{self, StudyConfig, mse_per_joint};
+use crate::trajectory::{
+    ReadOptions, read_states_csv, write_csv, write_torques, write_torques_csv,
+};
+
+mod diagnosis;
+mod reproduction;
+
+pub use diagnosis::{DiagnoseArgs, diagnose};
+pub use reproduction::{
+    ReproduceArgs, Situation, StudyArgs, StudyRunArgs, reproduce, study_command,
+};
+
+/// The default virtual robot: the thesis model plus joint friction and armature.
+pub const DEFAULT_PLANT: &str = "kinova_gen3_lite_3dof_plant";
+/// The thesis's analytical model.
+pub const DEFAULT_NOMINAL: &str = "kinova_gen3_lite_3dof";
+
+fn progress_bar() -> ProgressBar {
+    let bar = ProgressBar::new(1);
+    if let Ok(style) = ProgressStyle::with_template("{msg:24} [{bar:30}] {pos}/{len} {elapsed}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
+
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Output folder for trajectory_NN.csv files.
+    #[arg(long, default_value = "recordings")]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
+    pub seed: u64,
+    /// Number of trajectories (1-1000).
+    #[arg(long, default_value_t = 14, value_parser = ranges::integer(1, 1000, "run several times with other --seed and --out"))]
+    pub count: usize,
+    /// Seconds per trajectory (above 0, at most 3600).
+    #[arg(long, default_value_t = 20.0, value_parser = ranges::real(0.0, 3600.0, true, "record several trajectories"))]
+    pub duration: f64,
+    #[arg(long, default_value = DEFAULT_PLANT)]
+    pub plant: String,
+    #[arg(long, default_value = DEFAULT_NOMINAL)]
+    pub nominal: String,
+}
+
+/// Most recorded seconds one `simulate` run writes, or one study records (10 h, about 2 GB of
+/// CSV at 1 kHz for 3 joints): beyond it, run it several times.
+const MOST_SIMULATED_SECONDS: f64 = 36_000.0;
+
+pub fn simulate(args: &SimulateArgs) -> Result<()> {
+    let total = args.count as f64 * args.duration;
+    if total > MOST_SIMULATED_SECONDS {
+        bail!(
+            "--count {} x --duration {} s is {total} s of recordings, more than one run writes \
+             ({MOST_SIMULATED_SECONDS} s, about 2 GB at 1 kHz for 3 joints): run it several \
+             times with other --seed values",
+            args.count,
+            args.duration
+        );
+    }
+    let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    crate::output::create_folder(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let config = StudyConfig {
+        duration: args.duration,
+        ..StudyConfig::default()
+    };
+    let waypoints = crate::sim::reference::WaypointConfig {
+        duration: args.duration,
+        limits: study::limits(nominal, &config)?,
+        ..Default::default()
+    };
+    let bar = progress_bar();
+    bar.set_length(args.count as u64);
+    bar.set_message("recording trajectories");
+    for k in 0..args.count {
+        let seed = study::trajectory_seed(args.seed, k);
+        let recording = study::record_trajectory(plant, nominal, &waypoints, seed)?;
+        let path = args.out.join(format!("trajectory_{:02}.csv", k + 1));
+        write_csv(&path, &recording.measured)?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    println!(
+        "{} trajectories written to {}",
+        args.count,
+        args.out.display()
+    );
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct PreprocessArgs {
+    /// Measured CSV files.
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Output folder (same file names).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub filter: FilterArgs,
+}
+
+pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
+    crate::output::create_folder(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    for_each_file(&args.data, |path| {
+        let (processed, pipeline) = load_one(path, None, &args.input, &args.filter)?;
+        eprintln!("{}: {}", path.display(), pipeline.summary());
+        write_csv(args.out.join(file_name(path)?), &processed)?;
+        Ok(())
+    })
+}
+
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// Compiled model that produces the torques.
+    #[arg(long, default_value = DEFAULT_NOMINAL)]
+    pub model: String,
+    /// Measured CSV files (preprocessed here unless --preprocessed).
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The files already carry filtered qd and qdd.
+    #[arg(long)]
+    pub preprocessed: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub filter: FilterArgs,
+}
+
+pub fn synth(args: &SynthArgs) -> Result<()> {
+    let model = find_model(&args.model)?;
+    crate::output::create_folder(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    for_each_file(&args.data, |path| {
+        let traj = if args.preprocessed {
+            load_preprocessed(path, Some(model.dof()), &args.input)?
+        } else {
+            load_one(path, Some(model.dof()), &args.input, &args.filter)?.0
+        };
+        let analytical = traj.with_tau(model_torques(model, &traj)?)?;
+        write_csv(args.out.join(file_name(path)?), &analytical)?;
+        Ok(())
+    })
+}
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Training CSV files (measured and/or synthesized).
+    #[arg(required = true)]
+    pub data: Vec<PathBuf>,
+    /// Model file to write (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 0, value_parser = ranges::seed)]
+    pub seed: u64,
+    /// Hidden layer widths, comma separated (1-8 layers of 1-4096).
+    #[arg(long, value_delimiter = ',', default_values_t = StudyConfig::default().hidden, value_parser = ranges::width)]
+    pub hidden: Vec<usize>,
+    /// Maximum training epochs (1-100000).
+    #[arg(long, default_value_t = StudyConfig::default().max_epochs, value_parser = ranges::integer(1, 100_000, "continue from the written network"))]
+    pub epochs: usize,
+    /// The files already carry filtered qd and qdd.
+    #[arg(long)]
+    pub preprocessed: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub filter: FilterArgs,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+pub fn train(args: &TrainArgs) -> Result<()> {
+    ranges::check_layers(&args.hidden).map_err(anyhow::Error::msg)?;
+    let trajectories = if args.preprocessed {
+        args.data
+            .iter()
+            .map(|path| load_preprocessed(path, None, &args.input))
+            .collect::<Result<Vec<_>>>()?
+    } else {
+        let (trajectories, pipeline) = load(&args.data, None, &args.input, &args.filter)?;
+        eprintln!("{}", pipeline.summary());
+        trajectories
+    };
+    let mut parts = Vec::new();
+    for (group, (path, traj)) in args.data.iter().zip(&trajectories).enumerate() {
+        parts.push(
+            Dataset::from_trajectory(traj, group).with_context(|| path.display().to_string())?,
+        );
+    }
+    let data = Dataset::concat(&parts)?;
+    let bar = progress_bar();
+    bar.set_length(args.epochs as u64);
+    bar.set_message("training");
+    let defaults = StudyConfig::default();
+    let network = Mlp::params()
+        .hidden(args.hidden.clone())
+        .max_epochs(args.epochs)
+        .patience(defaults.patience)
+        .batch_size(defaults.batch_size)
+        .learning_rate(defaults.learning_rate)
+        .seed(args.seed)
+        .check()?
+        .fit_with(&data, None, &mut |epoch| {
+            bar.set_position(epoch.epoch as u64)
+        })?;
+    bar.finish_and_clear();
+    network.save(&args.out)?;
+    let history = network.history();
+    let summary = serde_json::json!({
+        "model": args.out.display().to_string(),
+        "samples": data.len(),
+        "epochs": history.epochs(),
+        "best_epoch": history.best_epoch(),
+        "train_loss": history.train_loss().last(),
+        "valid_loss": history.valid_loss().last(),
+    });
+    let text = match args.format {
+        Format::Json => summary.to_string(),
+        Format::Text => format!(
+            "trained on {} samples for {} epochs (best {}); written to {}",
+            data.len(),
+            history.epochs(),
+            history.best_epoch(),
+            args.out.display()
+        ),
+    };
+    // With the network on standard output, the summary goes to stderr.
+    if crate::output::is_stdout(&args.out) {
+        eprintln!("{text}");
+    } else {
+        println!("{text}");
+    }
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// Compiled model (the analytical model, or the nominal model with --nn).
+    #[arg(long, default_value = DEFAULT_NOMINAL)]
+    pub model: String,
+    /// Measured CSV files.
+    #[arg(long, required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
+    /// Evaluate this trained network instead of the analytical model.
+    #[arg(long)]
+    pub nn: Option<PathBuf>,
+    #[command(flatten)]
+    pub input: InputArgs,
+    #[command(flatten)]
+    pub filter: FilterArgs,
+    #[arg(long, value_enum, default_value_t)]
+    pub format: Format,
+}
+
+pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
+    let model = find_model(&args.model)?;
+    let network = args.nn.as_ref().map(Mlp::load).transpose()?;
+    if let (Some(n), Some(path)) = (&network, &args.nn) {
+        let dof = model.dof();
+        if n.n_inputs() != 3 * dof || n.n_outputs() != dof {
+            bail!(
+                "{}: the network maps {} inputs to {} torques; model `{}` has {dof} joints \
+                 (3 x {dof} inputs q, qd, qdd and {dof} torques): pass the --model it was trained for",
+                path.display(),
+                n.n_inputs(),
+                n.n_outputs(),
+                model.name()
+            );
+        }
+    }
+    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let pipeline = args.filter.resolve(&recordings)?;
+    let mut compared = Vec::new();
+    for (raw, path) in recordings.iter().zip(&args.data) {
+        compared.push(
+            pipeline
+                .compare(raw, |traj| match &network {
+                    Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
+                    None => model_torques(model, traj),
+                })
+                .with_context(|| path.display().to_string())?,
+        );
+    }
+    let stacked = |f: fn(&Compared) -> &DMatrix<f64>| {
+        study::stack(compared.iter().map(|c| f(c).clone()).collect())
+    };
+    let (p, m) = (stacked(|c| &c.predicted), stacked(|c| &c.measured));
+    let mse = mse_per_joint(&p, &m);
+    // Each recording weighs as in `mse` (by its kept samples, i.e. by its
+    // duration), whatever rate it was logged at.
+    let weights: Vec<f64> = compared.iter().map(|c| c.measured.nrows() as f64).collect();
+    let total: f64 = weights.iter().sum::<f64>().max(1.0);
+    let mut mse_as_logged = vec![0.0; model.dof()];
+    for (c, w) in compared.iter().zip(&weights) {
+        let each = mse_per_joint(&c.predicted_unfiltered, &c.measured_as_logged);
+        for (sum, v) in mse_as_logged.iter_mut().zip(each) {
+            *sum += v * w / total;
+        }
+    }
+    let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
+    let name = args
+        .nn
+        .as_ref()
+        .map_or(model.name().to_string(), |p| p.display().to_string());
+    match args.format {
+        Format::Json => println!(
+            "{}",
+            serde_json::json!({
+                "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
+                "mse_torque_as_logged": mse_as_logged, "preprocessing": pipeline,
+            })
+        ),
+        Format::Text => {
+            println!("model {name}: {} samples", m.nrows());
+            println!("{}", pipeline.summary());
+            for (j, v) in mse.iter().enumerate() {
+                println!(
+                    "  joint {}: MSE {v:.6} N m^2 (against the torque as logged: {:.6})",
+                    j + 1,
+                    mse_as_logged[j]
+                );
+            }
+            println!("  mean:    MSE {mean:.6} N m^2");
+        }
+    }
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct PredictArgs {
+    /// Trained network (JSON from `sdnn train`).
+    #[arg(long)]
+    pub nn: PathBuf,
+    /// State file (q1..qN,qd1..qdN,qdd1..qddN).
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Torque file; standard output if absent.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t)]
+    pub angles: AngleArg,
+}
+
+pub fn predict(args: &PredictArgs) -> Result<()> {
+    let network = Mlp::load(&args.nn)?;
+    let dof = network.n_outputs();
+    if network.n_inputs() != 3 * dof {
+        bail!(
+            "{}: the network maps {} inputs to {dof} torques, not a network of joint states \
+             (q, qd and qdd of each joint: {} inputs)",
+            args.nn.display(),
+            network.n_inputs(),
+            3 * dof
+        );
+    }
+    let options = ReadOptions {
+        units: args.angles.into(),
+        dof: Some(dof),
+        min_samples: 1,
+        ..ReadOptions::default()
+    };
+    let states = read_states_csv(&args.input, &options)?;
+    let mut inputs = DMatrix::zeros(states.len(), 3 * dof);
+    inputs.columns_mut(0, dof).copy_from(states.q());
+    inputs.columns_mut(dof, dof).copy_from(states.qd());
+    inputs.columns_mut(2 * dof, dof).copy_from(states.qdd());
+    let tau = network.predict(&inputs)?;
+    match &args.output {
+        Some(path) => write_torques_csv(path, &tau)?,
+        None => write_torques(&mut std::io::stdout().lock(), &tau)
+            .context("writing to standard output")?,
+    }
+    Ok(())
+}
+
+fn file_name(path: &Path) -> Result<&std::ffi::OsStr> {
+    path.file_name()
+        .with_context(|| format!("{}: not a file name", path.display()))
+}
+
+/// Runs `f` on every file, whose output is the file's name in the output
+/// folder; a bad file is reported and the rest still run.
+fn for_each_file(files: &[PathBuf], f: impl Fn(&Path) -> Result<()>) -> Result<()> {
+    for (k, path) in files.iter().enumerate() {
+        let name = file_name(path)?;
+        if let Some(other) = files[..k].iter().find(|p| p.file_name() == Some(name)) {
+            bail!(
+                "{} and {} have the same file name: their outputs would overwrite each other in \
+                 the output folder (rename one, or run them separately)",
+                other.display(),
+                path.display()
+            );
+        }
+    }
+    let mut failed = 0;
+    for path in files {
+        if let Err(e) = f(path) {
+            eprintln!("sdnn: {}", crate::errors::message(&e));
+            failed += 1;
+        }
+    }
+    if failed > 0 {
+        bail!("{failed} of {} files failed", files.len());
+    }
+    Ok(())
+}
