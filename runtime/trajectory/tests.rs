@@ -1,0 +1,196 @@
+use super::*;
+use proptest::prelude::*;
+
+/// A unique scratch directory per test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pipeline-traj-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write_file(name: &str, body: &str) -> PathBuf {
+    let path = scratch(name).join("in.csv");
+    std::fs::write(&path, body).unwrap();
+    path
+}
+
+const GOOD: &str = "t,q1,q2,qd1,qd2,tau1,tau2\n\
+                    0.0,1,2,3,4,5,6\n\
+                    0.01,1,2,3,4,5,6\n\
+                    0.02,1,2,3,4,5,6\n";
+
+#[test]
+fn reads_contract_file() {
+    let traj = read_csv(write_file("good", GOOD), &ReadOptions::default()).unwrap();
+    assert_eq!((traj.len(), traj.dof()), (3, 2));
+    assert_eq!(traj.qd()[(2, 1)], 4.0);
+    assert!(traj.qdd().is_none());
+}
+
+#[test]
+fn maps_columns_by_header_name() {
+    let body = "tau1,qd1,time,q1,junk\n5,3,0,1,x\n6,4,1,2,y\n";
+    let mut opts = ReadOptions::default();
+    opts.renames.insert("time".into(), "t".into());
+    opts.ignored.push("junk".into());
+    let traj = read_csv(write_file("order", body), &opts).unwrap();
+    assert_eq!(traj.t(), &[0.0, 1.0]);
+    assert_eq!(traj.q()[(1, 0)], 2.0);
+    assert_eq!(traj.tau()[(1, 0)], 6.0);
+}
+
+#[test]
+fn converts_degrees_but_not_torque() {
+    let body = "t,q1,qd1,qdd1,tau1\n0,180,90,45,7\n1,0,0,0,7\n";
+    let opts = ReadOptions {
+        units: Units {
+            angles: AngleUnit::Degrees,
+        },
+        ..ReadOptions::default()
+    };
+    let traj = read_csv(write_file("deg", body), &opts).unwrap();
+    assert!((traj.q()[(0, 0)] - std::f64::consts::PI).abs() < 1e-15);
+    assert!((traj.qdd().unwrap()[(0, 0)] - std::f64::consts::FRAC_PI_4).abs() < 1e-15);
+    assert_eq!(traj.tau()[(0, 0)], 7.0);
+}
+
+fn read_err(name: &str, body: &str, opts: &ReadOptions) -> String {
+    read_csv(write_file(name, body), opts)
+        .unwrap_err()
+        .to_string()
+}
+
+#[test]
+fn reports_bad_cells_with_line_and_column() {
+    let body = GOOD.replace("0.01,1,2,3,4", "0.01,1,2,abc,4");
+    let msg = read_err("parse", &body, &ReadOptions::default());
+    assert!(
+        msg.contains("line 3") && msg.contains("'qd1'") && msg.contains("'abc'"),
+        "{msg}"
+    );
+    let body = GOOD.replace("0.02,1,2,3,4,5,6", "0.02,1,2,3,4,5,NaN");
+    let msg = read_err("nan", &body, &ReadOptions::default());
+    assert!(
+        msg.contains("line 4") && msg.contains("tau2") && msg.contains("finite"),
+        "{msg}"
+    );
+    let body = GOOD.replace("0.02,1,2,3,4,5,6", "0.02,1,2,3,4,5");
+    let msg = read_err("ragged", &body, &ReadOptions::default());
+    assert!(msg.contains("line 4") && msg.contains("7 fields"), "{msg}");
+}
+
+#[test]
+fn reports_header_problems() {
+    let opts = ReadOptions::default();
+    let msg = read_err(
+        "missing",
+        "t,q1,q2,qd1,tau1,tau2\n0,1,1,1,1,1\n1,1,1,1,1,1\n",
+        &opts,
+    );
+    assert!(msg.contains("missing column 'qd2'"), "{msg}");
+    let msg = read_err("extra", "t,q1,qd1,tau1,temp\n0,1,1,1,1\n1,1,1,1,1\n", &opts);
+    assert!(
+        msg.contains("unexpected column 'temp'") && msg.contains("ignored"),
+        "{msg}"
+    );
+    let msg = read_err("dup", "t,q1,q1,qd1,tau1\n0,1,1,1,1\n1,1,1,1,1\n", &opts);
+    assert!(msg.contains("'q1' appears twice"), "{msg}");
+    let msg = read_err("partial-qdd", "t,q1,q2,qd1,qd2,qdd1,tau1,tau2\n", &opts);
+    assert!(msg.contains("missing column 'qdd2'"), "{msg}");
+    let three = ReadOptions {
+        dof: Some(3),
+        ..ReadOptions::default()
+    };
+    let msg = read_err("dof", GOOD, &three);
+    assert!(
+        msg.contains("expected 3 joints") && msg.contains("has 2"),
+        "{msg}"
+    );
+    let msg = read_err("empty", "", &opts);
+    assert!(msg.contains("empty file"), "{msg}");
+}
+
+#[test]
+fn rejects_bad_time() {
+    let body = GOOD.replace("0.02,", "0.01,");
+    let msg = read_err("repeat", &body, &ReadOptions::default());
+    assert!(
+        msg.contains("line 4") && msg.contains("strictly increase"),
+        "{msg}"
+    );
+    let few = ReadOptions {
+        min_samples: 10,
+        ..ReadOptions::default()
+    };
+    let msg = read_err("few", GOOD, &few);
+    assert!(msg.contains("3 samples, at least 10"), "{msg}");
+}
+
+#[test]
+fn jitter_needs_resampling() {
+    let body = "t,q1,qd1,tau1\n0,0,0,0\n0.01,1,1,1\n0.025,2,2,2\n0.03,3,3,3\n";
+    let msg = read_err("jitter", body, &ReadOptions::default());
+    assert!(
+        msg.contains("--resample HZ") && msg.contains("0.015"),
+        "{msg}"
+    );
+    let opts = ReadOptions {
+        resample_hz: Some(100.0),
+        ..ReadOptions::default()
+    };
+    let traj = read_csv(write_file("jitter-ok", body), &opts).unwrap();
+    assert_eq!(traj.len(), 4);
+    // At t = 0.02 the value lies 2/3 of the way from 1 (t=0.01) to 2 (t=0.025).
+    assert!((traj.q()[(2, 0)] - (1.0 + 2.0 / 3.0)).abs() < 1e-12);
+    assert!(matches!(
+        resample(&traj, f64::NAN),
+        Err(TrajectoryError::InvalidResampleRate { .. })
+    ));
+}
+
+#[test]
+fn states_and_torques_round_trip() {
+    let dir = scratch("states");
+    let m = |k: f64| DMatrix::from_fn(3, 2, |r, c| k + r as f64 * 0.1 + c as f64);
+    let states = States::new(m(1.0), m(2.0), m(3.0)).unwrap();
+    write_states_csv(dir.join("s.csv"), &states).unwrap();
+    let back = read_states_csv(dir.join("s.csv"), &ReadOptions::default()).unwrap();
+    assert_eq!(back, states);
+    write_torques_csv(dir.join("tau.csv"), &m(4.0)).unwrap();
+    let tau = read_torques_csv(dir.join("tau.csv"), &ReadOptions::default()).unwrap();
+    assert_eq!(tau, m(4.0));
+    let err = read_states_csv(dir.join("tau.csv"), &ReadOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("missing column 'q1'"), "{err}");
+}
+
+#[test]
+fn shape_mismatch_is_an_error() {
+    let z = |r, c| DMatrix::zeros(r, c);
+    let err = Trajectory::new(vec![0.0, 1.0], z(2, 3), z(2, 3), None, z(2, 2)).unwrap_err();
+    assert!(err.to_string().contains("tau has shape 2x2, expected 2x3"));
+    let err = Trajectory::new(vec![0.0, 0.0], z(2, 1), z(2, 1), None, z(2, 1)).unwrap_err();
+    assert!(err.to_string().contains("sample 1 (0-based)"), "{err}");
+    let ok = Trajectory::new(vec![0.0, 1e9], z(2, 1), z(2, 1), None, z(2, 1)).unwrap();
+    assert!(matches!(
+        resample(&ok, 1e6),
+        Err(TrajectoryError::ResampleTooLarge { .. })
+    ));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+    #[test]
+    fn write_read_is_bit_exact(
+        values in prop::collection::vec(-1e3f64..1e3, 12),
+        tiny in 1e-300f64..1e-290,
+    ) {
+        let n = 4;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 0.001).collect();
+        let m = |k: usize| DMatrix::from_fn(n, 1, |r, _| values[(k * n + r) % 12] * if r == 0 { tiny } else { 1.0 });
+        let traj = Trajectory::new(t, m(0), m(1), Some(m(2)), m(0)).unwrap();
+        let path = scratch("prop").join("rt.csv");
+        write_csv(&path, &traj).unwrap();
+        let back = read_csv(&path, &ReadOptions::default()).unwrap();
+        prop_assert_eq!(back, traj);
+    }
+}
