@@ -78,6 +78,7 @@
 //! (typically the component along the joint axes, which acts only through
 //! couplings with the first joint), so the torques barely depend on it.
 
+mod alternatives;
 pub mod apply;
 mod candidate;
 pub mod data;
@@ -168,6 +169,10 @@ pub struct Effect {
     /// That drop as a fraction of the joint's (a link effect: all joints')
     /// held-out MSE before the diagnosis.
     pub heldout_share: f64,
+    /// Other effects (as "kind on joint N" / "kind of link N (`name`)")
+    /// that explain the same structure almost as well on held-out data: the
+    /// data barely tell them from this one (a note says what would).
+    pub ambiguous_with: Vec<String>,
 }
 
 /// The diagnosis report (`sdnn diagnose --format json`).
@@ -437,6 +442,16 @@ pub fn diagnose(
     }
     let (mut selected, mut notes) = (selection.selected, selection.notes);
     drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
+    let alternatives: Vec<_> = selection
+        .alternatives
+        .into_iter()
+        .filter(|a| selected.contains(&a.named))
+        .collect();
+    notes.extend(
+        alternatives
+            .iter()
+            .map(|a| alternatives::note(&candidates, a)),
+    );
     notes.extend(offset_or_asymmetry(&data, &candidates, &selected));
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
@@ -447,13 +462,20 @@ pub fn diagnose(
         &selected,
         fit::Scoring::Fitted,
     );
-    let effects = describe(
+    let mut effects = describe(
         &moments,
         &candidates,
         &selected,
         settings.com_resolution * size,
         &mut notes,
     );
+    for (effect, &c) in effects.iter_mut().zip(&selected) {
+        effect.ambiguous_with = alternatives
+            .iter()
+            .filter(|a| a.named == c)
+            .map(|a| select::label(&candidates[a.runner_up]))
+            .collect();
+    }
     for &c in selected.iter().filter(|c| second_moments.contains(c)) {
         notes.push(format!(
             "{}: the link's origin does not accelerate in these motions (it lies on the axes of \

@@ -248,6 +248,7 @@ pub(super) fn effect(
         ci95,
         heldout_mse_removed: 0.0,
         heldout_share: 0.0,
+        ambiguous_with: Vec::new(),
     }
 }
 

@@ -3,6 +3,7 @@
 
 use nalgebra::{DVector, Vector3};
 
+use super::alternatives::{Alternative, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, width};
 use super::fit::{
     Fit, Moments, Scoring, cv_mse, fit, fit_robust, identifiability, pseudo_solve, robust_quantity,
@@ -140,6 +141,7 @@ pub(super) fn select(
     let mut selected: Vec<usize> = Vec::new();
     let mut refused: Vec<usize> = Vec::new();
     let mut notes = Vec::new();
+    let mut alternatives = Vec::new();
     let unidentifiable: Vec<usize> = (0..candidates.len())
         .filter(|&c| {
             fit(m, candidates, &[c], |_| true).is_none_or(|f| {
@@ -150,7 +152,7 @@ pub(super) fn select(
     let initial = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
     let mut current = initial.clone();
     loop {
-        let best = (0..candidates.len())
+        let scored: Vec<(usize, Gain, Vec<f64>)> = (0..candidates.len())
             .filter(|c| {
                 !selected.contains(c)
                     && !refused.contains(c)
@@ -164,7 +166,11 @@ pub(super) fn select(
                 (c, relative_gain(&current, &mse, &initial), mse)
             })
             .filter(|(_, gain, _)| gain.share.is_finite())
-            .max_by(|a, b| a.1.share.total_cmp(&b.1.share));
+            .collect();
+        let best = scored
+            .iter()
+            .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
+            .cloned();
         let Some((c, gain, mse)) = best else { break };
         let mut trial = selected.clone();
         trial.push(c);
@@ -210,6 +216,9 @@ pub(super) fn select(
             refused.push(c);
             continue;
         }
+        alternatives.extend(runners_up(
+            m, candidates, &selected, c, gain, &mse, &initial, &scored, settings,
+        ));
         selected = trial;
         current = mse;
     }
@@ -235,10 +244,12 @@ pub(super) fn select(
             ));
         }
     }
+    alternatives.retain(|a: &Alternative| selected.contains(&a.named));
     Selection {
         selected,
         notes,
         rejected: refused,
+        alternatives,
     }
 }
 
@@ -249,6 +260,8 @@ pub(super) struct Selection {
     /// Candidates refused (not significant, not physical, collinear) or
     /// dropped by the prune.
     pub(super) rejected: Vec<usize>,
+    /// Named effects' runners-up that the data barely tell from them.
+    pub(super) alternatives: Vec<Alternative>,
 }
 
 /// Backward check of the forward selection: an effect named early can lose

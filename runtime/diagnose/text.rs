@@ -109,8 +109,16 @@ fn effect_line(e: &Effect) -> String {
         Some(j) => format!("joint {j}'s"),
         None => "the joints'".to_string(),
     };
+    let ambiguous = if e.ambiguous_with.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; ambiguous with {} (see notes)",
+            e.ambiguous_with.join(", ")
+        )
+    };
     format!(
-        "{} on {place}: {}; removes {:.0}% of {whose} held-out MSE ({} N m^2)",
+        "{} on {place}: {}; removes {:.0}% of {whose} held-out MSE ({} N m^2){ambiguous}",
         e.kind.name(),
         values.join(", "),
         100.0 * e.heldout_share,

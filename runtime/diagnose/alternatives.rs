@@ -1,0 +1,198 @@
+//! Confusable effects: another candidate that explains the structure a
+//! named effect explains almost as well on held-out data (a torque scale
+//! and a link's inertial error, a payload and the last link's mass, a
+//! torque offset and direction-dependent dry friction). The data cannot
+//! tell such pairs apart; the report says so instead of hiding the
+//! runner-up.
+
+use super::candidate::Candidate;
+use super::fit::{Moments, Scoring, cv_mse, fit};
+use super::select::{Gain, label, physical, relative_gain, significant};
+use super::{Kind, Settings};
+
+/// A runner-up whose held-out MSE is within this factor of the named
+/// effect's on every joint explains the data almost as well.
+pub const NEAR: f64 = 1.1;
+
+/// A named effect and a runner-up the data barely tell from it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Alternative {
+    pub(super) named: usize,
+    pub(super) runner_up: usize,
+    /// Held-out MSE (N m^2) of the joint the named effect acts on most,
+    /// with the named effect and with the runner-up instead.
+    pub(super) joint: usize,
+    pub(super) named_mse: f64,
+    pub(super) runner_up_mse: f64,
+}
+
+/// The runners-up of step `named` (added to `before`, leaving held-out
+/// MSEs `after`): candidates of another kind or place whose own held-out
+/// MSEs (`scored`) are within [`NEAR`] of `after` on every joint, that are
+/// significant and physical in place of the named effect, and that add no
+/// gain once it is named (they explain the same structure).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn runners_up(
+    m: &Moments,
+    candidates: &[Candidate],
+    before: &[usize],
+    named: usize,
+    gain: Gain,
+    after: &[f64],
+    initial: &[f64],
+    scored: &[(usize, Gain, Vec<f64>)],
+    settings: Settings,
+) -> Vec<Alternative> {
+    let dof = after.len();
+    let floor = initial.iter().fold(0.0_f64, |a, &b| a.max(b)) * 1e-12;
+    scored
+        .iter()
+        .filter(|(r, _, mse)| {
+            *r != named
+                && !same_effect(&candidates[named], &candidates[*r])
+                && mse.iter().zip(after).all(|(r, n)| *r <= NEAR * n + floor)
+        })
+        .filter(|(r, _, _)| {
+            let mut trial = before.to_vec();
+            trial.push(*r);
+            fit(m, candidates, &trial, |_| true)
+                .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
+                .is_some_and(|v| physical(&candidates[*r], &v, Gain::NONE, settings.reach).is_ok())
+        })
+        .filter(|(r, _, _)| {
+            let mut both = before.to_vec();
+            both.extend([named, *r]);
+            let mse = cv_mse(m, dof, candidates, &both, Scoring::Fitted);
+            relative_gain(after, &mse, initial).share < settings.min_gain
+        })
+        .map(|(r, _, mse)| Alternative {
+            named,
+            runner_up: *r,
+            joint: gain.joint,
+            named_mse: after[gain.joint],
+            runner_up_mse: mse[gain.joint],
+        })
+        .collect()
+}
+
+/// Two candidates of one kind at one place (a ripple's harmonics, a
+/// Stribeck velocity's grid) are one effect, not an ambiguity.
+fn same_effect(a: &Candidate, b: &Candidate) -> bool {
+    a.kind == b.kind && a.joint == b.joint && a.link == b.link
+}
+
+/// The note for a named effect's runner-up.
+pub(super) fn note(candidates: &[Candidate], alternative: &Alternative) -> String {
+    let (named, other) = (
+        &candidates[alternative.named],
+        &candidates[alternative.runner_up],
+    );
+    format!(
+        "{} is ambiguous with {}: in its place the other leaves joint {}'s held-out MSE at \
+         {:.4} N m^2 instead of {:.4} and explains the same structure, so these data barely tell \
+         them apart{}",
+        label(named),
+        label(other),
+        alternative.joint + 1,
+        alternative.runner_up_mse,
+        alternative.named_mse,
+        hint(named.kind, other.kind)
+    )
+}
+
+/// What would tell a confusable pair apart.
+fn hint(a: Kind, b: Kind) -> &'static str {
+    use Kind::*;
+    match (a, b) {
+        (TorqueScale, InertialError | Payload) | (InertialError | Payload, TorqueScale) => {
+            ": a torque sensor's scale multiplies friction and armature torques too, an inertial \
+             error does not; motions with more friction torque (slower, or reversing often), or \
+             a torque-sensor calibration, would tell"
+        }
+        (Payload, InertialError) | (InertialError, Payload) => {
+            ": a point mass and a link's mass change act through the same first moments; \
+             motions that rotate the last link fast about its own axes would tell"
+        }
+        (TorqueOffset, CoulombAsymmetry) | (CoulombAsymmetry, TorqueOffset) => {
+            ": only samples at rest tell a constant torque from friction that depends on the \
+             direction of motion"
+        }
+        _ => ": motions that excite them differently would tell",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::DVector;
+
+    use super::*;
+    use crate::diagnose::candidate::Shape;
+    use crate::diagnose::data::Stacked;
+    use crate::diagnose::select::select;
+
+    fn candidate(kind: Kind, column: DVector<f64>) -> Candidate {
+        Candidate {
+            kind,
+            joint: Some(0),
+            link: None,
+            modelled: [0.0; 10],
+            names: vec!["value"],
+            columns: vec![column],
+            applied: None,
+            shape: Shape::Linear,
+            settings: Vec::new(),
+            searched: 1,
+        }
+    }
+
+    /// One joint over 4 segments, residual 0.5 sin(q) plus noise; the
+    /// candidates' columns are sin(q), sin(q) + a trace of cos(3q) and qd.
+    fn case(trace: f64) -> (Stacked, Vec<Candidate>) {
+        let samples = 4000;
+        let t = |s: usize| s as f64 * 0.005;
+        let q = DVector::from_fn(samples, |s, _| 1.2 * (0.7 * t(s)).sin());
+        let qd = DVector::from_fn(samples, |s, _| 0.84 * (0.7 * t(s)).cos());
+        let noise = |s: usize| 0.05 * ((s as f64 * 12.9898).sin() * 43758.5453).fract();
+        let residual = DVector::from_fn(samples, |s, _| 0.5 * q[s].sin() + noise(s));
+        let data = Stacked {
+            measured: residual.clone(),
+            residual,
+            qd: qd.clone(),
+            qdd: DVector::zeros(samples),
+            gravity: DVector::zeros(samples),
+            generic: Vec::new(),
+            group: (0..samples).map(|s| s * 4 / samples).collect(),
+            dof: 1,
+        };
+        let candidates = vec![
+            candidate(Kind::TorqueOffset, q.map(f64::sin)),
+            candidate(
+                Kind::CoulombFriction,
+                q.map(|q| q.sin() + trace * (3.0 * q).cos()),
+            ),
+            candidate(Kind::ViscousFriction, qd),
+        ];
+        (data, candidates)
+    }
+
+    #[test]
+    fn a_runner_up_that_explains_the_same_structure_is_reported() {
+        let (data, candidates) = case(0.002);
+        let m = Moments::new(&data, &candidates);
+        let selection = select(&m, 1, &candidates, Settings::default());
+        assert_eq!(selection.selected, vec![0]);
+        let alternative = selection.alternatives.as_slice();
+        assert_eq!(alternative.len(), 1, "{alternative:?}");
+        assert_eq!((alternative[0].named, alternative[0].runner_up), (0, 1));
+        assert!(note(&candidates, &alternative[0]).contains("coulomb_friction on joint 1"));
+    }
+
+    #[test]
+    fn a_runner_up_the_data_tell_apart_is_not() {
+        let (data, candidates) = case(0.5);
+        let m = Moments::new(&data, &candidates);
+        let selection = select(&m, 1, &candidates, Settings::default());
+        assert_eq!(selection.selected, vec![0]);
+        assert!(selection.alternatives.is_empty());
+    }
+}
