@@ -16,7 +16,7 @@ const NOMINAL: &str = "kinova_gen3_lite_3dof";
 
 /// The diagnosis at its defaults: the auto preprocessing chosen from the
 /// recordings, segments chosen from their length.
-fn diagnose_auto(recordings: &[Trajectory]) -> Diagnosis {
+pub(crate) fn diagnose_auto(recordings: &[Trajectory]) -> Diagnosis {
     let nominal = sdnn::model(NOMINAL).unwrap();
     let pipeline = Pipeline::auto(recordings, None, None).unwrap();
     diagnose(nominal, recordings, &pipeline, Settings::default()).unwrap()
@@ -351,7 +351,8 @@ fn payload_on_the_last_link() {
 /// identify it when the inertia about the COM is as modelled (true here).
 /// Named as an inertial error of link 2 with the mass within 5% and the COM
 /// within 5 mm, a note saying on what assumption, the mass-COM trade-off
-/// reported under identifiability, and the held-out MSE of joint 2 cut by 80%.
+/// reported under identifiability, no unconstrained fit beside it (it would
+/// add nothing), and the held-out MSE of joint 2 cut by 80%.
 #[test]
 fn mass_and_com_error_in_one_link() {
     let (d, m1, c1) = link_error();
@@ -380,6 +381,9 @@ fn mass_and_com_error_in_one_link() {
         "{text}"
     );
     assert!(!d.identifiability.confounded.is_empty(), "{text}");
+    // The inertia about the COM is as modelled: the free fit of the ten
+    // parameters is no better and physical, so none is reported beside.
+    assert!(effect.unconstrained.is_none(), "{text}");
     assert!(
         d.mse_after[1] <= 0.2 * d.mse_before[1],
         "joint 2: MSE {} -> {}",

@@ -9,6 +9,7 @@ mod freshness;
 mod generated_code;
 mod hidden_effects;
 mod hostile;
+mod inertial;
 mod lumping;
 mod readers_fuzz;
 mod springs;

@@ -9,6 +9,7 @@ use super::search;
 
 /// One candidate: a kind, a joint or link, its columns and how its named
 /// parameters map to coefficients of those columns.
+#[derive(Clone)]
 pub(super) struct Candidate {
     pub(super) kind: Kind,
     pub(super) joint: Option<usize>,
@@ -168,6 +169,13 @@ pub(super) fn point_mass(m: f64, c: &Vector3<f64>) -> [f64; 10] {
 /// principal moments about the centre of mass). `None` when its
 /// eigenvalues cannot be computed.
 pub(super) fn physically_consistent(p: &[f64; 10]) -> Option<bool> {
+    pseudo_inertia_margin(p).map(|margin| margin >= 0.0)
+}
+
+/// The smallest eigenvalue of the pseudo-inertia of `p` (see
+/// [`physically_consistent`]) plus a rounding allowance: not negative for a
+/// physical body. Concave in `p`, the pseudo-inertia being linear in it.
+pub(super) fn pseudo_inertia_margin(p: &[f64; 10]) -> Option<f64> {
     let [m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] = *p;
     let half_trace = 0.5 * (ixx + iyy + izz);
     let pseudo = DMatrix::from_row_slice(
@@ -194,7 +202,7 @@ pub(super) fn physically_consistent(p: &[f64; 10]) -> Option<bool> {
     );
     let scale = pseudo.iter().fold(0.0_f64, |s, x| s.max(x.abs()));
     let eigenvalues = crate::kernels::symmetric_eigenvalues(pseudo)?;
-    Some(eigenvalues.min() >= -1e-12 * scale)
+    Some(eigenvalues.min() + 1e-12 * scale)
 }
 
 /// Global column indices of the selected candidates.

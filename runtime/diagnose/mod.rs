@@ -89,6 +89,7 @@ mod report;
 mod search;
 mod select;
 mod text;
+mod unconstrained;
 mod unexplained;
 
 use serde::Serialize;
@@ -103,6 +104,7 @@ use fit::{Moments, cv_mse_per_joint};
 pub use identify::{Confounded, Identifiability};
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
 use select::{body_identifiable, mass_identifiable, select};
+pub use unconstrained::Unconstrained;
 pub use unexplained::{RegimeShare, Unexplained};
 
 /// The kinds of effect the diagnosis can name.
@@ -173,6 +175,10 @@ pub struct Effect {
     /// that explain the same structure almost as well on held-out data: the
     /// data barely tell them from this one (a note says what would).
     pub ambiguous_with: Vec<String>,
+    /// A payload's or link's ten inertial parameters fitted freely, when
+    /// that fit differs from the physical one (not realizable, or clearly
+    /// better on held-out data); `None` otherwise.
+    pub unconstrained: Option<Unconstrained>,
 }
 
 /// The diagnosis report (`sdnn diagnose --format json`).
@@ -475,6 +481,8 @@ pub fn diagnose(
             .filter(|a| a.named == c)
             .map(|a| select::label(&candidates[a.runner_up]))
             .collect();
+        effect.unconstrained =
+            unconstrained::unconstrained(&moments, &candidates, &selected, c, settings, &mut notes);
     }
     for &c in selected.iter().filter(|c| second_moments.contains(c)) {
         notes.push(format!(

@@ -249,6 +249,7 @@ pub(super) fn effect(
         heldout_mse_removed: 0.0,
         heldout_share: 0.0,
         ambiguous_with: Vec::new(),
+        unconstrained: None,
     }
 }
 

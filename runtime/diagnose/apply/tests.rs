@@ -38,6 +38,7 @@ fn effect(kind: Kind, joint: Option<usize>, params: serde_json::Value) -> Effect
         heldout_mse_removed: 0.1,
         heldout_share: 0.5,
         ambiguous_with: Vec::new(),
+        unconstrained: None,
     }
 }
 
