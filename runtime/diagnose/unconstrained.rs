@@ -81,7 +81,8 @@ pub(super) fn unconstrained(
         .iter()
         .zip(&physical_mse)
         .any(|(f, p)| *p > 0.0 && (p - f) / p >= settings.min_gain);
-    if !(model_physical && consistent == Some(false)) && !better {
+    let unrealizable = model_physical && consistent == Some(false);
+    if !unrealizable && !better {
         return None;
     }
     let [mass, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] = corrected;
@@ -98,6 +99,10 @@ pub(super) fn unconstrained(
     Some(report)
 }
 
+/// Moments and candidates in the base-parameter basis, the map from its
+/// coefficients to the ten parameters' change, and the directions unseen.
+type BaseParameters = (Moments, Vec<Candidate>, DMatrix<f64>, Vec<[f64; 10]>);
+
 /// Candidate `c`'s ten inertial columns replaced by the combinations the
 /// data determine (base parameters): eigenvectors of their unit-diagonal
 /// Gram matrix with eigenvalues at least [`COLLINEAR`] times the largest.
@@ -108,7 +113,7 @@ fn base_parameters(
     m: &Moments,
     candidates: &[Candidate],
     c: usize,
-) -> Option<(Moments, Vec<Candidate>, DMatrix<f64>, Vec<[f64; 10]>)> {
+) -> Option<BaseParameters> {
     let offset: usize = candidates[..c].iter().map(|x| x.columns.len()).sum();
     let mut gram = DMatrix::<f64>::zeros(10, 10);
     for xx in m.xx.iter().flatten() {
