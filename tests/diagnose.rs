@@ -146,6 +146,10 @@ fn direction_dependent_friction_is_told_from_an_offset() {
         (value(Kind::CoulombAsymmetry, "asymmetry") - 0.1).abs() < 0.015,
         "{named:?}"
     );
+    // Told apart only by the samples at rest: the offset is listed beside.
+    let asymmetry = d.effects.iter().find(|e| e.kind == Kind::CoulombAsymmetry);
+    let beside = &asymmetry.unwrap().ambiguous_with;
+    assert_eq!(beside, &["torque_offset on joint 1"], "{named:?}");
 }
 
 #[test]

@@ -205,11 +205,11 @@ fn named(e: &Effect) -> String {
 /// - a tilted base with a payload: the payload's columns use the model's
 ///   gravity, so the tilt absorbs the payload's share of the tilted load
 ///   (the tilt comes out about 23% large);
-/// - a tilted base with a torque-scale error: an inertial error of link 2
-///   is named too (and from one recording an offset on joint 1);
+/// - a tilted base with a torque-scale error: from one recording the tilt
+///   is missed and an offset on joint 1 and link errors are named instead;
 /// - a torque-scale error with a delay: the delay comes out up to 16% small;
 /// - a torque-scale error with a payload (a gain error and a heavier tip
-///   scale the same gravity torques): the payload comes out up to 50% heavy
+///   scale the same gravity torques): the payload comes out up to 56% heavy
 ///   and scales are named on the other joints;
 /// - a ripple with an armature from one 100 Hz recording: a second ripple
 ///   at the noise floor (0.009 N m, 1.7% of the joint's error) is named on

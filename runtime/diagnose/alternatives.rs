@@ -75,6 +75,58 @@ pub(super) fn runners_up(
         .collect()
 }
 
+/// A payload and the last link's inertial error change the same ten
+/// columns and differ only in second moments. Where a named link error can
+/// be replaced by the payload on its link with every joint's held-out MSE
+/// within [`NEAR`], the payload significant and physical in its place, the
+/// payload is named (the usual case: the arm carries something) and the
+/// link error is listed as ambiguous with it.
+pub(super) fn payload_over_link_error(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &mut [usize],
+    alternatives: &mut Vec<Alternative>,
+    settings: Settings,
+) {
+    let dof = m.xx.first().map_or(0, Vec::len);
+    for at in 0..selected.len() {
+        let named = selected[at];
+        let Some(payload) = candidates.iter().position(|p| {
+            p.kind == Kind::Payload
+                && candidates[named].kind == Kind::InertialError
+                && p.link == candidates[named].link
+        }) else {
+            continue;
+        };
+        let mse = cv_mse(m, dof, candidates, selected, Scoring::Fitted);
+        // The payload last: `significant` tests the last candidate.
+        let mut trial: Vec<usize> = selected.iter().copied().filter(|&c| c != named).collect();
+        trial.push(payload);
+        let swapped = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
+        let close = swapped.iter().zip(&mse).all(|(s, n)| *s <= NEAR * n);
+        let admissible = fit(m, candidates, &trial, |_| true)
+            .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
+            .is_some_and(|v| {
+                physical(&candidates[payload], &v, Gain::NONE, settings.reach).is_ok()
+            });
+        if !(close && admissible) {
+            continue;
+        }
+        selected[at] = payload;
+        alternatives.retain(|a| a.named != named);
+        let joint = (0..dof)
+            .max_by(|&a, &b| mse[a].total_cmp(&mse[b]))
+            .unwrap_or(0);
+        alternatives.push(Alternative {
+            named: payload,
+            runner_up: named,
+            joint,
+            named_mse: swapped[joint],
+            runner_up_mse: mse[joint],
+        });
+    }
+}
+
 /// Two candidates of one kind at one place (a ripple's harmonics, a
 /// Stribeck velocity's grid) are one effect, not an ambiguity.
 fn same_effect(a: &Candidate, b: &Candidate) -> bool {

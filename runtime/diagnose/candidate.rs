@@ -376,49 +376,53 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
     }
     for (k, link) in links.iter().enumerate().rev() {
         let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
-        list.push(link_candidate(k, n, link, columns));
+        if k + 1 == n {
+            list.push(payload_candidate(k, link, columns.clone()));
+        }
+        list.push(link_candidate(k, link, columns));
     }
     list
 }
 
-/// A payload on the last link, an inertial error of any other.
-fn link_candidate(k: usize, n: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidate {
+/// A payload on the last link: a point mass added to it (mass and COM).
+fn payload_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidate {
+    Candidate {
+        kind: Kind::Payload,
+        shape: Shape::Body {
+            offset: [0.0; 10],
+            base_mass: 0.0,
+            base_moment: Vector3::zeros(),
+        },
+        ..link_candidate(k, link, columns)
+    }
+}
+
+/// An inertial error of any link: its mass and COM moved, its inertia
+/// about the COM as modelled. On the last link it competes with a payload
+/// (the same ten columns; only the second moments tell them apart).
+fn link_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidate {
     let (mass, moment) = (
         link.parameters[0],
         Vector3::new(link.parameters[1], link.parameters[2], link.parameters[3]),
     );
-    let last = k + 1 == n;
-    let shape = if last {
-        Shape::Body {
-            offset: [0.0; 10],
-            base_mass: 0.0,
-            base_moment: Vector3::zeros(),
-        }
+    let com = if mass > 0.0 {
+        moment / mass
     } else {
-        let com = if mass > 0.0 {
-            moment / mass
-        } else {
-            Vector3::zeros()
-        };
-        Shape::Body {
-            offset: point_mass(-mass, &com),
-            base_mass: mass,
-            base_moment: moment,
-        }
+        Vector3::zeros()
     };
     Candidate {
-        kind: if last {
-            Kind::Payload
-        } else {
-            Kind::InertialError
-        },
+        kind: Kind::InertialError,
         joint: None,
         link: Some((k, link.name.clone())),
         modelled: link.parameters,
         names: vec!["mass", "cx", "cy", "cz"],
         columns,
         applied: None,
-        shape,
+        shape: Shape::Body {
+            offset: point_mass(-mass, &com),
+            base_mass: mass,
+            base_moment: moment,
+        },
         settings: Vec::new(),
         searched: 1,
     }

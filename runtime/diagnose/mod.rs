@@ -10,8 +10,8 @@
 //! The residual is linear in the parameters of
 //! every candidate effect: per joint viscous friction (column qd_j), Coulomb
 //! friction (sign(qd_j), zero at rest), armature (qdd_j) and a torque offset
-//! (1); a payload on the last link and an inertial error of any other link
-//! (the generated regressor's inertial columns). Effects are
+//! (1) and the other kinds of [`Kind`]; a payload on the last link and an
+//! inertial error of any link (the generated regressor's inertial columns). Effects are
 //! chosen by forward selection, each step keeping the candidate that lowers
 //! the leave-one-segment-out MSE most (scored with the fitted columns, so a
 //! sticking joint does not favour a wrong kind; reported MSEs use the applied
@@ -33,8 +33,8 @@
 //!   c adds), so the fit is nonlinear in c: Levenberg-Marquardt on the
 //!   moment matrices of the link's ten inertial regressor columns, started
 //!   from the linear fit of its mass and first-moment columns.
-//! - `inertial_error`: the mass and centre of mass of a link other than the
-//!   last differ from the model, its inertia about its centre of mass as
+//! - `inertial_error`: the mass and centre of mass of a link differ from
+//!   the model, its inertia about its centre of mass as
 //!   modelled. Standard parameters [m', m'c', I_C + m'(|c'|^2 E - c'c'^T)]
 //!   minus the model's; reported as the corrected mass and COM.
 //!
@@ -58,12 +58,11 @@
 //! the mass and moves the COM to h / (modelled mass), the assumption the
 //! note states, and never changes the mass.
 //!
-//! Naming rule on the last link: an added point mass and a heavier last link
-//! change the same mass and first-moment columns (they differ only in
-//! second moments, which these data barely separate), so the last link gets
-//! one candidate, the payload: mass added at the tip. A negative fitted
-//! payload mass is a note (the last link is lighter than modelled), never a
-//! payload. Links before the last get `inertial_error` candidates.
+//! The last link: an added point mass (`payload`) and a heavier last link
+//! with its COM moved (`inertial_error`) change the same ten columns and
+//! differ only in the second moments, so both compete; where the data
+//! barely tell them apart the named one lists the other as ambiguous. A
+//! negative fitted payload mass is a note, never a payload.
 //!
 //! Identifiability: a candidate whose parameters the data cannot separate
 //! (its information matrix, after the already-selected effects are
@@ -318,29 +317,39 @@ fn drop_unhelpful(
 }
 
 /// A torque offset and direction-dependent dry friction are the same torque
-/// while the joint moves; only samples at rest tell them apart. Where one
-/// is named on a joint with dry friction, a note says how many samples
-/// could tell (the other reading is as plausible when few rest).
+/// while the joint moves; only samples at rest tell them apart, and there
+/// the friction is static or follows the plant's own law near zero speed,
+/// which no column here knows. Where one is named on a joint with dry
+/// friction and the other is not, the other is listed as ambiguous with it
+/// (named candidate, other candidate) and a note says how many samples
+/// could tell.
 fn offset_or_asymmetry(
     data: &data::Stacked,
     candidates: &[candidate::Candidate],
     selected: &[usize],
-) -> Vec<String> {
+    notes: &mut Vec<String>,
+) -> Vec<(usize, usize)> {
+    let find = |kind: Kind, j: usize| {
+        candidates
+            .iter()
+            .position(|c| c.kind == kind && c.joint == Some(j))
+    };
     let named = |kind: Kind, j: usize| {
         selected
             .iter()
             .any(|&c| candidates[c].kind == kind && candidates[c].joint == Some(j))
     };
-    let mut notes = Vec::new();
+    let mut pairs = Vec::new();
     for j in 0..data.dof {
         let (offset, asymmetry) = (
             named(Kind::TorqueOffset, j),
             named(Kind::CoulombAsymmetry, j),
         );
-        let dry = candidates
-            .iter()
-            .find(|c| c.kind == Kind::CoulombAsymmetry && c.joint == Some(j));
-        let Some(dry) = dry else { continue };
+        let (Some(o), Some(a)) = (find(Kind::TorqueOffset, j), find(Kind::CoulombAsymmetry, j))
+        else {
+            continue;
+        };
+        let dry = &candidates[a];
         let modelled =
             matches!(dry.shape, Shape::Asymmetry { modelled_coulomb } if modelled_coulomb > 0.0);
         if offset == asymmetry || !(modelled || named(Kind::CoulombFriction, j)) {
@@ -350,6 +359,7 @@ fn offset_or_asymmetry(
         let rows = data.rows_of(j);
         let count = rows.clone().count().max(1) as f64;
         let resting = rows.filter(|&r| dry.columns[0][r] < 0.5).count() as f64 / count;
+        pairs.push(if offset { (o, a) } else { (a, o) });
         let (this, other) = if offset {
             (
                 "a torque offset",
@@ -367,11 +377,11 @@ fn offset_or_asymmetry(
             if resting < 0.2 {
                 "almost as well"
             } else {
-                "less well"
+                "less well here, but how friction behaves near zero speed decides that"
             }
         ));
     }
-    notes
+    pairs
 }
 
 /// Fits the first moment alone (the mass held as modelled) for these body
@@ -458,7 +468,7 @@ pub fn diagnose(
             .iter()
             .map(|a| alternatives::note(&candidates, a)),
     );
-    notes.extend(offset_or_asymmetry(&data, &candidates, &selected));
+    let dry_pairs = offset_or_asymmetry(&data, &candidates, &selected, &mut notes);
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = fit::cv_mse(
@@ -479,8 +489,11 @@ pub fn diagnose(
         effect.ambiguous_with = alternatives
             .iter()
             .filter(|a| a.named == c)
-            .map(|a| select::label(&candidates[a.runner_up]))
+            .map(|a| a.runner_up)
+            .chain(dry_pairs.iter().filter(|p| p.0 == c).map(|p| p.1))
+            .map(|r| select::label(&candidates[r]))
             .collect();
+        effect.ambiguous_with.dedup();
         effect.unconstrained =
             unconstrained::unconstrained(&moments, &candidates, &selected, c, settings, &mut notes);
     }

@@ -25,9 +25,12 @@ const RESOLVED_REST_MULTIPLE: f64 = 3.0;
 
 /// Most ripple periods per joint revolution searched; and the least number
 /// of periods over the range the joint travelled (fewer are a smooth
-/// function of the position: a spring, gravity, an offset).
+/// function of the position: a spring, gravity, an offset). Half a period
+/// already bends the torque against the position in a way a spring or the
+/// rigid body's first and second harmonics cannot; two (the first choice)
+/// missed 6 and 4 cycles per revolution on joints that travelled 1-1.5 rad.
 const MOST_CYCLES: usize = 64;
-const LEAST_PERIODS_TRAVELLED: f64 = 2.0;
+const LEAST_PERIODS_TRAVELLED: f64 = 0.5;
 /// Harmonics of the position up to the second are gravity and inertial
 /// terms of the rigid body: a ripple starts at the third.
 const LEAST_CYCLES: usize = 3;
@@ -133,8 +136,9 @@ pub(super) fn stribeck_velocity(
 }
 
 /// The ripple harmonic of joint `j` (periods per revolution) and how many
-/// column shapes were searched (two per harmonic): integers from the third harmonic (and at least two
-/// periods over the range the joint travelled) to [`MOST_CYCLES`], the one
+/// column shapes were searched (two per harmonic): integers from the third
+/// harmonic (and [`LEAST_PERIODS_TRAVELLED`] periods over the range the
+/// joint travelled) to [`MOST_CYCLES`], the one
 /// whose sine and cosine of `cycles * q` leave the least residual once
 /// `nuisance` is projected out. `None` when the joint travelled too little
 /// for any.
@@ -199,8 +203,12 @@ mod tests {
         let nuisance = Nuisance::new(&data, 0, &[]);
         let (cycles, searched) = ripple_cycles(&data, 0, &q, &nuisance).unwrap();
         assert_eq!(cycles, 11.0);
-        // 2.4 rad travelled: at least 6 periods per revolution.
-        assert_eq!(searched, 2 * (MOST_CYCLES - 6 + 1));
+        // 2.4 rad travelled: half a period of any harmonic from the third.
+        assert_eq!(searched, 2 * (MOST_CYCLES - LEAST_CYCLES + 1));
+        // A low harmonic, 1.5 periods over the range travelled.
+        let (data, q, _) = sweep(|q, _| 0.1 * (4.0 * q).sin());
+        let nuisance = Nuisance::new(&data, 0, &[]);
+        assert_eq!(ripple_cycles(&data, 0, &q, &nuisance).unwrap().0, 4.0);
     }
 
     #[test]

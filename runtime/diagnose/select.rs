@@ -3,7 +3,7 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::alternatives::{Alternative, runners_up};
+use super::alternatives::{Alternative, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, width};
 use super::fit::{
     Fit, Moments, Scoring, cv_mse, fit, fit_robust, identifiability, pseudo_solve, robust_quantity,
@@ -244,6 +244,7 @@ pub(super) fn select(
             ));
         }
     }
+    payload_over_link_error(m, candidates, &mut selected, &mut alternatives, settings);
     alternatives.retain(|a: &Alternative| selected.contains(&a.named));
     Selection {
         selected,

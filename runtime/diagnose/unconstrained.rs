@@ -109,11 +109,7 @@ type BaseParameters = (Moments, Vec<Candidate>, DMatrix<f64>, Vec<[f64; 10]>);
 /// Returns the moments and candidates in that basis (`c` linear) and the
 /// 10 x k map from the combinations' coefficients to the parameters'
 /// change, which is zero in the directions the data do not see.
-fn base_parameters(
-    m: &Moments,
-    candidates: &[Candidate],
-    c: usize,
-) -> Option<BaseParameters> {
+fn base_parameters(m: &Moments, candidates: &[Candidate], c: usize) -> Option<BaseParameters> {
     let offset: usize = candidates[..c].iter().map(|x| x.columns.len()).sum();
     let mut gram = DMatrix::<f64>::zeros(10, 10);
     for xx in m.xx.iter().flatten() {
