@@ -70,7 +70,8 @@ pub enum Command {
     /// Predict torques of a trained network on a state file.
     Predict(crate::commands::PredictArgs),
     /// Find where a compiled model and measured data disagree and name the
-    /// missing effect (joint friction, offset, armature, payload).
+    /// missing effect (friction, armature, offset, payload or link error,
+    /// torque scale or delay, base tilt, spring, ripple).
     Diagnose(crate::commands::DiagnoseArgs),
     /// Convert a URDF into a TOML robot description (chain cut, locks, payloads).
     ImportUrdf(crate::imports::ImportUrdfArgs),

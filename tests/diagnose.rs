@@ -400,14 +400,23 @@ fn mass_and_com_error_in_one_link() {
 /// its inertia about the COM unchanged; the true mass and COM.
 fn link_error() -> (Diagnosis, f64, [f64; 3]) {
     let mut truth = oracle(NOMINAL);
-    let nominal = truth.bodies[1].parameters;
-    let m0 = nominal[0];
-    let c0 = [nominal[1] / m0, nominal[2] / m0, nominal[3] / m0];
-    let m1 = 1.2 * m0;
-    let c1 = [c0[0] + 0.03, c0[1], c0[2] + 0.04];
-    add_point_mass(&mut truth.bodies[1].parameters, -m0, c0);
-    add_point_mass(&mut truth.bodies[1].parameters, m1, c1);
+    let (m1, c1) = move_mass(&mut truth.bodies[1].parameters, 1.2, [0.03, 0.0, 0.04]);
     (run(&truth), m1, c1)
+}
+
+/// Scales a body's mass by `factor` and moves its COM by `shift` (body
+/// frame), its inertia about the COM unchanged; the new mass and COM.
+pub(crate) fn move_mass(
+    parameters: &mut [f64; 10],
+    factor: f64,
+    shift: [f64; 3],
+) -> (f64, [f64; 3]) {
+    let m0 = parameters[0];
+    let c0 = [parameters[1] / m0, parameters[2] / m0, parameters[3] / m0];
+    let (m1, c1) = (factor * m0, std::array::from_fn(|k| c0[k] + shift[k]));
+    add_point_mass(parameters, -m0, c0);
+    add_point_mass(parameters, m1, c1);
+    (m1, c1)
 }
 
 /// The model `--apply` writes in [`applied_fix_regenerates_to_the_fitted_prediction`],

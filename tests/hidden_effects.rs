@@ -206,7 +206,8 @@ fn named(e: &Effect) -> String {
 ///   gravity, so the tilt absorbs the payload's share of the tilted load
 ///   (the tilt comes out about 23% large);
 /// - a tilted base with a torque-scale error: from one recording the tilt
-///   is missed and an offset on joint 1 and link errors are named instead;
+///   or the scale is missed and an offset on joint 1 and link errors are
+///   named instead;
 /// - a torque-scale error with a delay: the delay comes out up to 16% small;
 /// - a torque-scale error with a payload (a gain error and a heavier tip
 ///   scale the same gravity torques): the payload comes out up to 56% heavy

@@ -200,22 +200,9 @@ mod tests {
     /// One joint over 4 segments, residual 0.5 sin(q) plus noise; the
     /// candidates' columns are sin(q), sin(q) + a trace of cos(3q) and qd.
     fn case(trace: f64) -> (Stacked, Vec<Candidate>) {
-        let samples = 4000;
-        let t = |s: usize| s as f64 * 0.005;
-        let q = DVector::from_fn(samples, |s, _| 1.2 * (0.7 * t(s)).sin());
-        let qd = DVector::from_fn(samples, |s, _| 0.84 * (0.7 * t(s)).cos());
-        let noise = |s: usize| 0.05 * ((s as f64 * 12.9898).sin() * 43758.5453).fract();
-        let residual = DVector::from_fn(samples, |s, _| 0.5 * q[s].sin() + noise(s));
-        let data = Stacked {
-            measured: residual.clone(),
-            residual,
-            qd: qd.clone(),
-            qdd: DVector::zeros(samples),
-            gravity: DVector::zeros(samples),
-            generic: Vec::new(),
-            group: (0..samples).map(|s| s * 4 / samples).collect(),
-            dof: 1,
-        };
+        let noise =
+            |q: f64, qd: f64| 0.05 * ((q * 12.9898 + qd * 78.233).sin() * 43758.5453).fract();
+        let (data, q, qd) = super::super::search::sweep(|q, qd| 0.5 * q.sin() + noise(q, qd));
         let candidates = vec![
             candidate(Kind::TorqueOffset, q.map(f64::sin)),
             candidate(

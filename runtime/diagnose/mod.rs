@@ -15,7 +15,8 @@
 //! chosen by forward selection, each step keeping the candidate that lowers
 //! the leave-one-segment-out MSE most (scored with the fitted columns, so a
 //! sticking joint does not favour a wrong kind; reported MSEs use the applied
-//! model's columns), while it lowers it
+//! model's columns; among those within 10% of the best on its joint, the one
+//! that cuts the most error over all joints), while it lowers it
 //! by at least `min_gain` and its parameters are significant (|t| > 3, each
 //! with the larger of its least-squares and its delete-one-segment
 //! jackknife standard error, as are the reported 95% intervals). What no

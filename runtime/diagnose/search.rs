@@ -173,29 +173,31 @@ pub(super) fn ripple_cycles(
     Some((best.0, 2 * (MOST_CYCLES - first + 1)))
 }
 
+/// One joint's stacked data with residual `f(q, qd)` along a sweep of
+/// 1.2 sin(0.7 t) over 20 s in four groups (the diagnosis's unit tests).
+#[cfg(test)]
+pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVector<f64>) {
+    let samples = 4000;
+    let t = |s: usize| s as f64 * 0.005;
+    let q = DVector::from_fn(samples, |s, _| 1.2 * (0.7 * t(s)).sin());
+    let qd = DVector::from_fn(samples, |s, _| 0.84 * (0.7 * t(s)).cos());
+    let residual = DVector::from_fn(samples, |s, _| f(q[s], qd[s]));
+    let data = Stacked {
+        measured: residual.clone(),
+        residual,
+        qd: qd.clone(),
+        qdd: DVector::zeros(samples),
+        gravity: DVector::zeros(samples),
+        generic: Vec::new(),
+        group: (0..samples).map(|s| s * 4 / samples).collect(),
+        dof: 1,
+    };
+    (data, q, qd)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// One joint's stacked data with residual `f(q, qd)` along a sweep.
-    fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVector<f64>) {
-        let samples = 4000;
-        let t = |s: usize| s as f64 * 0.005;
-        let q = DVector::from_fn(samples, |s, _| 1.2 * (0.7 * t(s)).sin());
-        let qd = DVector::from_fn(samples, |s, _| 0.84 * (0.7 * t(s)).cos());
-        let residual = DVector::from_fn(samples, |s, _| f(q[s], qd[s]));
-        let data = Stacked {
-            measured: residual.clone(),
-            residual,
-            qd: qd.clone(),
-            qdd: DVector::zeros(samples),
-            gravity: DVector::zeros(samples),
-            generic: Vec::new(),
-            group: (0..samples).map(|s| s * 4 / samples).collect(),
-            dof: 1,
-        };
-        (data, q, qd)
-    }
 
     #[test]
     fn the_ripple_harmonic_is_found() {
