@@ -75,6 +75,36 @@ pub(super) fn runners_up(
         .collect()
 }
 
+/// Among the candidates that leave the step's joint (the best one's) with a
+/// held-out MSE within [`NEAR`] of the best's, the one that cuts the most
+/// error over all joints (summed relative drops from `current`). A torque
+/// scale and a heavier tip scale the same gravity torques on one joint;
+/// the body also explains the other joints it loads, the scale does not.
+pub(super) fn broadest<'a>(
+    scored: &'a [(usize, Gain, Vec<f64>)],
+    best: &'a (usize, Gain, Vec<f64>),
+    current: &[f64],
+) -> &'a (usize, Gain, Vec<f64>) {
+    let joint = best.1.joint;
+    let cut = |mse: &[f64]| -> f64 {
+        mse.iter()
+            .zip(current)
+            .map(|(a, b)| {
+                if *b > 0.0 {
+                    ((b - a) / b).max(0.0)
+                } else {
+                    0.0
+                }
+            })
+            .sum()
+    };
+    scored
+        .iter()
+        .filter(|(_, _, mse)| mse[joint] <= NEAR * best.2[joint])
+        .max_by(|a, b| cut(&a.2).total_cmp(&cut(&b.2)))
+        .unwrap_or(best)
+}
+
 /// A payload and the last link's inertial error change the same ten
 /// columns and differ only in second moments. Where a named link error can
 /// be replaced by the payload on its link with every joint's held-out MSE
@@ -233,5 +263,22 @@ mod tests {
         let selection = select(&m, 1, &candidates, Settings::default());
         assert_eq!(selection.selected, vec![0]);
         assert!(selection.alternatives.is_empty());
+    }
+
+    /// Step 1 of a payload hidden with friction (independent simulator):
+    /// a scale on joint 3 cuts that joint 94%, the payload 94% too and
+    /// joints 1 and 2 by 89% and 82%: the payload is the step's effect. A
+    /// body that leaves the joint clearly worse is not.
+    #[test]
+    fn the_effect_that_explains_more_joints_wins_a_near_tie() {
+        let current = [0.0055, 0.84, 0.158];
+        let gain = |share| Gain { share, joint: 2 };
+        let scale = (0, gain(0.943), vec![0.0055, 0.84, 0.00907]);
+        let payload = (1, gain(0.938), vec![0.00061, 0.1506, 0.00982]);
+        let far = (2, gain(0.80), vec![0.00061, 0.1506, 0.0316]);
+        let scored = [scale.clone(), payload, far.clone()];
+        assert_eq!(broadest(&scored, &scored[0], &current).0, 1);
+        let scored = [scale, far];
+        assert_eq!(broadest(&scored, &scored[0], &current).0, 0);
     }
 }

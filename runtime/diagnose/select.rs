@@ -3,7 +3,7 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::alternatives::{Alternative, NEAR, payload_over_link_error, runners_up};
+use super::alternatives::{Alternative, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, width};
 use super::fit::{
     Fit, Moments, Scoring, cv_mse, fit, fit_robust, identifiability, pseudo_solve, robust_quantity,
@@ -253,36 +253,6 @@ pub(super) fn select(
         rejected: refused,
         alternatives,
     }
-}
-
-/// Among the candidates that leave the step's joint (the best one's) with a
-/// held-out MSE within [`NEAR`] of the best's, the one that cuts the most
-/// error over all joints (summed relative drops from `current`). A torque
-/// scale and a heavier tip scale the same gravity torques on one joint;
-/// the body also explains the other joints it loads, the scale does not.
-fn broadest<'a>(
-    scored: &'a [(usize, Gain, Vec<f64>)],
-    best: &'a (usize, Gain, Vec<f64>),
-    current: &[f64],
-) -> &'a (usize, Gain, Vec<f64>) {
-    let joint = best.1.joint;
-    let cut = |mse: &[f64]| -> f64 {
-        mse.iter()
-            .zip(current)
-            .map(|(a, b)| {
-                if *b > 0.0 {
-                    ((b - a) / b).max(0.0)
-                } else {
-                    0.0
-                }
-            })
-            .sum()
-    };
-    scored
-        .iter()
-        .filter(|(_, _, mse)| mse[joint] <= NEAR * best.2[joint])
-        .max_by(|a, b| cut(&a.2).total_cmp(&cut(&b.2)))
-        .unwrap_or(best)
 }
 
 /// What forward selection and pruning decided.
@@ -648,22 +618,5 @@ mod tests {
         // 7 g at 1.7 m (a first moment of 0.012 kg m): beyond the arm.
         let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], gain(0.3), 1.0).unwrap_err();
         assert!(note.contains("first-moment"), "{note}");
-    }
-
-    /// Step 1 of a payload hidden with friction (independent simulator):
-    /// a scale on joint 3 cuts that joint 94%, the payload 94% too and
-    /// joints 1 and 2 by 89% and 82%: the payload is the step's effect. A
-    /// body that leaves the joint clearly worse is not.
-    #[test]
-    fn the_effect_that_explains_more_joints_wins_a_near_tie() {
-        let current = [0.0055, 0.84, 0.158];
-        let gain = |share| Gain { share, joint: 2 };
-        let scale = (0, gain(0.943), vec![0.0055, 0.84, 0.00907]);
-        let payload = (1, gain(0.938), vec![0.00061, 0.1506, 0.00982]);
-        let far = (2, gain(0.80), vec![0.00061, 0.1506, 0.0316]);
-        let scored = [scale.clone(), payload, far.clone()];
-        assert_eq!(broadest(&scored, &scored[0], &current).0, 1);
-        let scored = [scale, far];
-        assert_eq!(broadest(&scored, &scored[0], &current).0, 0);
     }
 }
