@@ -5,9 +5,10 @@
 //! tell such pairs apart; the report says so instead of hiding the
 //! runner-up.
 
+use super::admit::{physical, significant};
 use super::candidate::Candidate;
 use super::fit::{Moments, Scoring, cv_mse, fit};
-use super::select::{Gain, label, physical, relative_gain, significant};
+use super::select::{Gain, label, relative_gain};
 use super::{Kind, Settings};
 
 /// A runner-up whose held-out MSE is within this factor of the named

@@ -78,6 +78,7 @@
 //! (typically the component along the joint axes, which acts only through
 //! couplings with the first joint), so the torques barely depend on it.
 
+mod admit;
 mod alternatives;
 pub mod apply;
 mod candidate;

@@ -1,0 +1,297 @@
+//! Whether a fitted candidate may be named: its parameters significant
+//! (held-out and jackknife standard errors, a higher bar for shapes chosen
+//! among many) and physical (a sign, size or reach a real effect can have;
+//! otherwise a note says what the data show instead).
+
+use nalgebra::{DVector, Vector3};
+
+use super::Kind;
+use super::candidate::{Candidate, Shape, width};
+use super::fit::{Fit, Moments, fit_robust, robust_quantity};
+use super::select::{Gain, MASS_FACTOR};
+
+/// Whether fitted `values` can be the candidate's physical effect; if not,
+/// the note that says what the data show instead.
+pub(super) fn physical(
+    candidate: &Candidate,
+    values: &[f64],
+    gain: Gain,
+    reach: f64,
+) -> Result<(), String> {
+    let at = match (&candidate.joint, &candidate.link) {
+        (Some(j), _) => format!("joint {}", j + 1),
+        (None, Some((k, name))) if candidate.kind == Kind::InertialError => {
+            format!("link {} (`{name}`)", k + 1)
+        }
+        _ => "the last link".to_string(),
+    };
+    let cut = gain.would_cut();
+    let value = values[0];
+    let meaning = match candidate.kind {
+        Kind::TorqueOffset | Kind::CoulombAsymmetry | Kind::TorqueRipple => return Ok(()),
+        Kind::TorqueScale | Kind::TorqueDelay | Kind::GravityDirection => {
+            return plausible_data_effect(candidate, values, &at, &cut);
+        }
+        Kind::InertialError if matches!(candidate.shape, Shape::Moment { .. }) => {
+            let Shape::Moment { base_mass, .. } = candidate.shape else {
+                unreachable!("matched above")
+            };
+            let distance = values.iter().map(|h| h * h).sum::<f64>().sqrt() / base_mass;
+            if distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a first moment that puts the centre of mass {distance:.2} m \
+                 from the link origin at the modelled mass {base_mass:.4} kg (the arm's size is \
+                 {reach:.2} m): not a physical body; not named (it {cut})"
+            ));
+        }
+        Kind::InertialError => {
+            let distance = values[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
+            let modelled = match candidate.shape {
+                Shape::Body { base_mass, .. } => base_mass,
+                _ => 0.0,
+            };
+            if modelled > 0.0 && !(modelled / MASS_FACTOR..=modelled * MASS_FACTOR).contains(&value)
+            {
+                return Err(format!(
+                    "{at}: the data fit a mass of {value:.4} kg for a link modelled at \
+                     {modelled:.4} kg, beyond a factor of {MASS_FACTOR}: not a plausible \
+                     correction of this link but the trace of another effect (an armature, a \
+                     payload); not named (it {cut})"
+                ));
+            }
+            if value > 0.0 && distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a mass of {value:.4} kg with its centre of mass {distance:.2} m \
+                 from the link origin (the arm's size is {reach:.2} m): not a physical body; not \
+                 named (it {cut})"
+            ));
+        }
+        _ if value <= 0.0 => match candidate.kind {
+            Kind::Armature => {
+                "the model's inertia about this joint is too high (an inertial error, not a rotor)"
+            }
+            Kind::ViscousFriction => {
+                "torque falls with speed: not viscous friction (check the velocity filter, or a Stribeck effect)"
+            }
+            Kind::CoulombFriction => {
+                "the residual opposes friction's direction: check the torque sign convention"
+            }
+            Kind::JointSpring => {
+                "torque that pushes the joint away from a rest angle is not a spring (a link \
+                 modelled too light about this joint?)"
+            }
+            Kind::StribeckFriction => {
+                "friction that grows with speed past rest: not a Stribeck breakaway (a \
+                 Coulomb level set too high?)"
+            }
+            _ => "the last link is lighter than modelled (an inertial error, not a payload)",
+        },
+        Kind::Payload => {
+            let com = &values[1..];
+            let distance = com.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if distance <= reach {
+                return Ok(());
+            }
+            return Err(format!(
+                "{at}: the data fit a mass of only {value:.4} kg with its centre of mass at \
+                 [{:.3}, {:.3}, {:.3}] m, {distance:.2} m away, beyond the arm's reach \
+                 ({reach:.2} m): a first-moment change, i.e. an inertial error of the last link, \
+                 not a payload; not named (it {cut})",
+                com[0], com[1], com[2]
+            ));
+        }
+        _ => return Ok(()),
+    };
+    let kind = candidate.kind.name();
+    Err(format!(
+        "{at}: the data fit {kind} = {value:.4}, a negative value (it {cut}): {meaning}; \
+         not named"
+    ))
+}
+
+/// Largest torque-scale error (either way), delay (s) and base tilt (rad)
+/// taken as that effect: beyond them the fit is the trace of something else
+/// (and a delay beyond it is outside the first-order model of its column).
+const PLAUSIBLE_SCALE_ERROR: f64 = 0.5;
+const PLAUSIBLE_DELAY: f64 = 0.1;
+const PLAUSIBLE_TILT: f64 = 0.5;
+
+fn plausible_data_effect(
+    candidate: &Candidate,
+    values: &[f64],
+    at: &str,
+    cut: &str,
+) -> Result<(), String> {
+    let (size, limit, what) = match candidate.kind {
+        Kind::TorqueScale => (
+            values[0].abs(),
+            PLAUSIBLE_SCALE_ERROR,
+            "a torque scale error",
+        ),
+        Kind::TorqueDelay => {
+            let Shape::Delay { sample_period } = candidate.shape else {
+                return Ok(());
+            };
+            // A torque read early by up to a sample is the logging
+            // convention; a late one is a delay, however short.
+            if (-sample_period..=0.0).contains(&values[0]) {
+                return Err(format!(
+                    "all joints: the data fit a torque delay of {:.2} ms, early by at most one \
+                     sample period ({:.2} ms): the logging convention (a torque held over the \
+                     sample interval reads half a sample early), not a delay; not named (it {cut})",
+                    1e3 * values[0],
+                    1e3 * sample_period
+                ));
+            }
+            (values[0].abs(), PLAUSIBLE_DELAY, "a delay (s)")
+        }
+        _ => {
+            let Shape::Tilt { gravity, .. } = &candidate.shape else {
+                return Ok(());
+            };
+            let across = values[0].hypot(values[1]);
+            (
+                across.atan2(gravity.norm()),
+                PLAUSIBLE_TILT,
+                "a base tilt (rad)",
+            )
+        }
+    };
+    if size <= limit {
+        return Ok(());
+    }
+    let place = if candidate.joint.is_some() {
+        at
+    } else {
+        "all joints"
+    };
+    Err(format!(
+        "{place}: the data fit {what} of {size:.3}, beyond the plausible {limit}: the trace of \
+         another effect; not named (it {cut})"
+    ))
+}
+
+/// The fitted parameters of the last candidate of `trial` when it is
+/// significant: every parameter of a joint effect; a payload's mass (its COM
+/// components may be zero); for an inertial error, a change of the mass or
+/// of some COM component from the model's. Each |t| uses the larger of the
+/// least-squares and the jackknife standard error, so a parameter that
+/// swings from trajectory to trajectory is not significant however many
+/// correlated samples pin it down within each.
+pub(super) fn significant(
+    m: &Moments,
+    candidates: &[Candidate],
+    trial: &[usize],
+    full: &Fit,
+    min_t: f64,
+) -> Option<Vec<f64>> {
+    let (_, se) = fit_robust(m, candidates, trial)?;
+    let theta = &full.theta;
+    let added = *trial.last()?;
+    let offset: usize = trial[..trial.len() - 1]
+        .iter()
+        .map(|&c| width(&candidates[c]))
+        .sum();
+    let w = width(&candidates[added]);
+    let candidate = &candidates[added];
+    let min_t = searched_threshold(min_t, candidate.searched);
+    let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
+    let ok = match (&candidate.kind, &candidate.shape) {
+        (Kind::Payload, _) => t(0, 0.0) > min_t,
+        // A tilt may be about one axis only, a ripple's phase anything; a
+        // spring's constant (its rest angle times its stiffness) may well
+        // be zero.
+        (Kind::GravityDirection | Kind::TorqueRipple, _) => (0..w).any(|k| t(k, 0.0) > min_t),
+        (Kind::JointSpring, _) => t(0, 0.0) > min_t,
+        (
+            Kind::InertialError,
+            Shape::Body {
+                base_mass,
+                base_moment,
+                ..
+            },
+        ) => {
+            let com = if *base_mass > 0.0 {
+                base_moment / *base_mass
+            } else {
+                Vector3::zeros()
+            };
+            let nominal = [*base_mass, com.x, com.y, com.z];
+            // Mass and COM may trade against each other (a link whose mass
+            // acts only through second moments) while their product, the
+            // first moment, is well determined: a change of either counts.
+            let moment = |p: &DVector<f64>| {
+                let at = p.rows(offset, 4);
+                DVector::from_fn(3, |i, _| at[0] * at[i + 1] - base_moment[i])
+            };
+            let (change, change_se) = robust_quantity(m, candidates, trial, full, moment);
+            (0..4).any(|k| t(k, nominal[k]) > min_t)
+                || (0..3).any(|i| change[i].abs() > min_t * change_se[i])
+        }
+        (Kind::InertialError, Shape::Moment { base_moment, .. }) => {
+            (0..3).any(|k| t(k, base_moment[k]) > min_t)
+        }
+        _ => (0..w).all(|k| t(k, 0.0) > min_t),
+    };
+    ok.then(|| theta.rows(offset, w).iter().copied().collect())
+}
+
+/// The |t| a candidate chosen among `searched` column shapes must pass:
+/// sqrt(min_t^2 + 2 ln searched), close to a Bonferroni correction of the
+/// normal tail (3 -> 4.0 for 50 shapes), so the best of many shapes fitted
+/// to noise is not named.
+pub(super) fn searched_threshold(min_t: f64, searched: usize) -> f64 {
+    (min_t * min_t + 2.0 * (searched.max(1) as f64).ln()).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidate::Shape;
+
+    fn candidate(kind: Kind, joint: Option<usize>) -> Candidate {
+        Candidate {
+            kind,
+            joint,
+            link: None,
+            modelled: [0.0; 10],
+            names: vec![],
+            columns: vec![],
+            applied: None,
+            shape: Shape::Linear,
+            settings: Vec::new(),
+            searched: 1,
+        }
+    }
+
+    fn gain(share: f64) -> Gain {
+        Gain { share, joint: 0 }
+    }
+
+    #[test]
+    fn impossible_signs_become_notes() {
+        let armature = candidate(Kind::Armature, Some(3));
+        let note = physical(&armature, &[-0.1], gain(0.15), 1.0).unwrap_err();
+        assert!(
+            note.starts_with("joint 4:") && note.contains("inertia"),
+            "{note}"
+        );
+        assert!(physical(&armature, &[0.1], gain(0.15), 1.0).is_ok());
+        let offset = candidate(Kind::TorqueOffset, Some(0));
+        assert!(physical(&offset, &[-0.3], gain(0.5), 1.0).is_ok());
+    }
+
+    #[test]
+    fn a_payload_beyond_the_arm_is_a_note() {
+        let payload = candidate(Kind::Payload, None);
+        // 0.5 kg at 0.1 m: a payload.
+        assert!(physical(&payload, &[0.5, 0.0, 0.0, 0.05], gain(0.3), 1.0).is_ok());
+        // 7 g at 1.7 m (a first moment of 0.012 kg m): beyond the arm.
+        let note = physical(&payload, &[0.007, 0.0, 0.0, 1.7], gain(0.3), 1.0).unwrap_err();
+        assert!(note.contains("first-moment"), "{note}");
+    }
+}
