@@ -120,42 +120,39 @@ pub(super) fn payload_over_link_error(
     settings: Settings,
 ) {
     let dof = m.xx.first().map_or(0, Vec::len);
-    for at in 0..selected.len() {
-        let named = selected[at];
-        let Some(payload) = candidates.iter().position(|p| {
-            p.kind == Kind::Payload
-                && candidates[named].kind == Kind::InertialError
-                && p.link == candidates[named].link
-        }) else {
-            continue;
-        };
-        let mse = cv_mse(m, dof, candidates, selected, Scoring::Fitted);
-        // The payload last: `significant` tests the last candidate.
-        let mut trial: Vec<usize> = selected.iter().copied().filter(|&c| c != named).collect();
-        trial.push(payload);
-        let swapped = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-        let close = swapped.iter().zip(&mse).all(|(s, n)| *s <= NEAR * n);
-        let admissible = fit(m, candidates, &trial, |_| true)
-            .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
-            .is_some_and(|v| {
-                physical(&candidates[payload], &v, Gain::NONE, settings.reach).is_ok()
-            });
-        if !(close && admissible) {
-            continue;
-        }
-        selected[at] = payload;
-        alternatives.retain(|a| a.named != named);
-        let joint = (0..dof)
-            .max_by(|&a, &b| mse[a].total_cmp(&mse[b]))
-            .unwrap_or(0);
-        alternatives.push(Alternative {
-            named: payload,
-            runner_up: named,
-            joint,
-            named_mse: swapped[joint],
-            runner_up_mse: mse[joint],
-        });
+    let Some(payload) = candidates.iter().position(|p| p.kind == Kind::Payload) else {
+        return;
+    };
+    let Some(at) = selected.iter().position(|&c| {
+        candidates[c].kind == Kind::InertialError && candidates[c].link == candidates[payload].link
+    }) else {
+        return;
+    };
+    let named = selected[at];
+    let mse = cv_mse(m, dof, candidates, selected, Scoring::Fitted);
+    // The payload last: `significant` tests the last candidate.
+    let mut trial: Vec<usize> = selected.iter().copied().filter(|&c| c != named).collect();
+    trial.push(payload);
+    let swapped = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
+    let close = swapped.iter().zip(&mse).all(|(s, n)| *s <= NEAR * n);
+    let admissible = fit(m, candidates, &trial, |_| true)
+        .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
+        .is_some_and(|v| physical(&candidates[payload], &v, Gain::NONE, settings.reach).is_ok());
+    if !(close && admissible) {
+        return;
     }
+    selected[at] = payload;
+    alternatives.retain(|a| a.named != named);
+    let joint = (0..dof)
+        .max_by(|&a, &b| mse[a].total_cmp(&mse[b]))
+        .unwrap_or(0);
+    alternatives.push(Alternative {
+        named: payload,
+        runner_up: named,
+        joint,
+        named_mse: swapped[joint],
+        runner_up_mse: mse[joint],
+    });
 }
 
 /// Two candidates of one kind at one place (a ripple's harmonics, a

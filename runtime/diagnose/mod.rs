@@ -488,16 +488,29 @@ pub fn diagnose(
         &mut notes,
     );
     for (effect, &c) in effects.iter_mut().zip(&selected) {
-        effect.ambiguous_with = alternatives
+        let mut beside: Vec<usize> = Vec::new();
+        let others = alternatives
             .iter()
             .filter(|a| a.named == c)
-            .map(|a| a.runner_up)
-            .chain(dry_pairs.iter().filter(|p| p.0 == c).map(|p| p.1))
-            .map(|r| select::label(&candidates[r]))
+            .map(|a| a.runner_up);
+        for r in others.chain(dry_pairs.iter().filter(|p| p.0 == c).map(|p| p.1)) {
+            if !beside.contains(&r) {
+                beside.push(r);
+            }
+        }
+        effect.ambiguous_with = beside
+            .iter()
+            .map(|&r| select::label(&candidates[r]))
             .collect();
-        effect.ambiguous_with.dedup();
-        effect.unconstrained =
-            unconstrained::unconstrained(&moments, &candidates, &selected, c, settings, &mut notes);
+        effect.unconstrained = unconstrained::unconstrained(
+            &moments,
+            &candidates,
+            &selected,
+            &mse_after,
+            c,
+            settings,
+            &mut notes,
+        );
     }
     for &c in selected.iter().filter(|c| second_moments.contains(c)) {
         notes.push(format!(

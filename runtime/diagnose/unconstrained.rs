@@ -44,12 +44,14 @@ pub struct Unconstrained {
 
 /// The free fit of named inertial effect `c` (a payload's or a link's ten
 /// columns, linear) with the other `selected` effects, when it differs from
-/// the physical fit: not realizable, or some joint's held-out MSE lower by
-/// at least `settings.min_gain`. A note says which and what it means.
+/// the physical fit (held-out MSE per joint `physical_mse`): not
+/// realizable, or some joint's held-out MSE lower by at least
+/// `settings.min_gain`. A note says which and what it means.
 pub(super) fn unconstrained(
     m: &Moments,
     candidates: &[Candidate],
     selected: &[usize],
+    physical_mse: &[f64],
     c: usize,
     settings: Settings,
     notes: &mut Vec<String>,
@@ -76,10 +78,9 @@ pub(super) fn unconstrained(
     // inequality) makes the free fit's realizability say nothing about data.
     let model_physical = physically_consistent(&free[c].modelled) != Some(false);
     let free_mse = cv_mse_per_joint(&reduced, dof, &free, selected);
-    let physical_mse = cv_mse_per_joint(m, dof, candidates, selected);
     let better = free_mse
         .iter()
-        .zip(&physical_mse)
+        .zip(physical_mse)
         .any(|(f, p)| *p > 0.0 && (p - f) / p >= settings.min_gain);
     let unrealizable = model_physical && consistent == Some(false);
     if !unrealizable && !better {
