@@ -8,7 +8,7 @@
 //! inertial parameters (m, m*c, inertia about the origin), so the same pass
 //! computes torques and, with unit parameters, the regressor.
 
-use codegen::{Chain, Description, JointEffects};
+use codegen::{Chain, Description, JointEffects, JointKind};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, Vector3};
 
 /// Number of standard inertial parameters per body.
@@ -31,6 +31,8 @@ pub struct Model {
 pub struct OracleBody {
     pub rotation: Matrix3<f64>,
     pub translation: Vector3<f64>,
+    /// Revolute (turns about `axis`) or prismatic (slides along it).
+    pub kind: JointKind,
     pub axis: Unit<Vector3<f64>>,
     /// m, m*c, inertia about the body origin (Pinocchio order).
     pub parameters: [f64; INERTIAL_PARAMETERS],
@@ -50,6 +52,7 @@ impl Model {
             .map(|b| OracleBody {
                 rotation: b.rotation,
                 translation: b.translation,
+                kind: b.kind,
                 axis: Unit::new_normalize(b.axis),
                 parameters: b.inertial.standard_parameters(),
                 effects: b.effects,
@@ -227,30 +230,57 @@ fn rigid_body_torque(
     let mut vd = -gravity;
     for (i, body) in model.bodies.iter().enumerate() {
         let a = body.axis.into_inner();
-        let r = body.rotation * Rotation3::from_axis_angle(&body.axis, q[i]).into_inner();
+        let (r, p) = body.placement(q[i]);
         let rt = r.transpose();
-        let p = body.translation;
         vd = rt * (vd + wd.cross(&p) + w.cross(&w.cross(&p)));
         let w_parent = rt * w;
-        w = w_parent + a * qd[i];
-        wd = rt * wd + a * qdd[i] + w_parent.cross(&a) * qd[i];
+        wd = rt * wd;
+        if body.kind == JointKind::Prismatic {
+            w = w_parent;
+            vd += a * qdd[i] + 2.0 * w_parent.cross(&a) * qd[i];
+        } else {
+            w = w_parent + a * qd[i];
+            wd += a * qdd[i] + w_parent.cross(&a) * qd[i];
+        }
         let (m, h, inertia) = unpack(&params[i]);
         forces.push(m * vd + wd.cross(&h) + w.cross(&w.cross(&h)));
         moments.push(inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd));
-        rotations.push(r);
+        rotations.push((r, p));
     }
     let mut tau = DVector::zeros(n);
     for i in (0..n).rev() {
         if i + 1 < n {
-            let child_force = rotations[i + 1] * forces[i + 1];
-            let child_moment = rotations[i + 1] * moments[i + 1]
-                + model.bodies[i + 1].translation.cross(&child_force);
+            let (r, p) = rotations[i + 1];
+            let child_force = r * forces[i + 1];
+            let child_moment = r * moments[i + 1] + p.cross(&child_force);
             forces[i] += child_force;
             moments[i] += child_moment;
         }
-        tau[i] = model.bodies[i].axis.dot(&moments[i]);
+        let body = &model.bodies[i];
+        let along = match body.kind {
+            JointKind::Prismatic => forces[i],
+            _ => moments[i],
+        };
+        tau[i] = body.axis.dot(&along);
     }
     tau
+}
+
+impl OracleBody {
+    /// The body frame in the previous one at joint position q: rotation
+    /// and origin.
+    pub fn placement(&self, q: f64) -> (Matrix3<f64>, Vector3<f64>) {
+        match self.kind {
+            JointKind::Prismatic => (
+                self.rotation,
+                self.translation + self.rotation * self.axis.into_inner() * q,
+            ),
+            _ => (
+                self.rotation * Rotation3::from_axis_angle(&self.axis, q).into_inner(),
+                self.translation,
+            ),
+        }
+    }
 }
 
 fn unpack(p: &[f64; INERTIAL_PARAMETERS]) -> (f64, Vector3<f64>, Matrix3<f64>) {

@@ -15,8 +15,7 @@ use serde::Deserialize;
 use crate::error::{DescriptionError, KeyPath, Located, line_column};
 pub use crate::names::{MAX_NAME_CHARS, check_model_name, check_name};
 use crate::reduce::{Chain, reduce};
-use crate::schema::INERTIA_RTOL;
-pub use crate::schema::{Inertia, Joint, JointEffects, JointKind, Limits, Link, Origin};
+pub use crate::schema::{Inertia, Joint, JointEffects, JointKind, Limits, Link, Mimic, Origin};
 
 /// Standard gravity pointing down the base frame's z axis.
 pub const DEFAULT_GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
@@ -190,7 +189,40 @@ impl Description {
                 ));
             }
         }
+        self.check_mimics()?;
         self.check_acyclic_single_root(&parent_of)
+    }
+
+    /// A mimic follows an existing joint with a position that is not itself
+    /// a mimic.
+    fn check_mimics(&self) -> Result<(), Located> {
+        for (i, joint) in self.joints.iter().enumerate() {
+            let Some(mimic) = &joint.mimic else { continue };
+            let master = self.joints.iter().find(|j| j.name == mimic.joint);
+            let problem = match master {
+                None => Some("which is not defined in [[joints]]"),
+                Some(m) if m.name == joint.name => Some("itself"),
+                Some(m) if !m.kind.has_position() => Some("which is fixed"),
+                Some(m) if m.mimic.is_some() => {
+                    Some("which is a mimic itself; follow its master instead")
+                }
+                Some(_) => None,
+            };
+            if let Some(problem) = problem {
+                return Err(Located::new(
+                    KeyPath::root()
+                        .key("joints")
+                        .index(i)
+                        .key("mimic")
+                        .key("joint"),
+                    format!(
+                        "joint `{}` follows `{}`, {problem}",
+                        joint.name, mimic.joint
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     fn check_acyclic_single_root(&self, parent_joint: &HashMap<&str, &str>) -> Result<(), Located> {
@@ -310,16 +342,23 @@ fn validate_inertia(inertia: &Inertia, link: &Link, at: KeyPath) -> Result<(), L
     let eig = SymmetricEigen::new(inertia.matrix()).eigenvalues;
     let mut p = [eig[0], eig[1], eig[2]];
     p.sort_by(f64::total_cmp);
-    if p[0] <= 0.0 {
+    if link.nonphysical_inertia.is_some() {
+        return Ok(());
+    }
+    // A point mass (zero inertia) and a thin rod (one moment zero) are
+    // physical; files round their numbers, so both checks allow for it.
+    let rounding = INERTIA_ROUNDING * p[2] + INERTIA_FLOOR;
+    if p[0] < -rounding {
         return Err(Located::new(
             at,
             format!(
-                "inertia of link `{}` is not positive definite: principal moments {:.6e}, {:.6e}, {:.6e} kg m^2",
+                "inertia of link `{}` is not positive semi-definite: principal moments {:.6e}, {:.6e}, {:.6e} kg m^2, \
+                 so no rigid body has it; fix the tensor, or keep it on purpose with `nonphysical_inertia = \"<why>\"`",
                 link.name, p[0], p[1], p[2]
             ),
         ));
     }
-    if p[0] + p[1] < p[2] * (1.0 - INERTIA_RTOL) && link.nonphysical_inertia.is_none() {
+    if p[0] + p[1] < p[2] - rounding {
         return Err(Located::new(
             at,
             format!(
@@ -331,6 +370,12 @@ fn validate_inertia(inertia: &Inertia, link: &Link, at: KeyPath) -> Result<(), L
     }
     Ok(())
 }
+
+/// Rounding allowed in the inertia checks: relative to the largest principal
+/// moment (files print about six digits) plus an absolute floor, far below
+/// any link of an arm (kg m^2).
+pub const INERTIA_ROUNDING: f64 = 1e-6;
+pub const INERTIA_FLOOR: f64 = 1e-12;
 
 fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
     let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
@@ -356,15 +401,19 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
         origin.key("rpy"),
         "rpy angle (rad)",
     )?;
-    if let Some(angle) = joint.locked {
+    let (position_limit, unit) = match joint.kind {
+        JointKind::Prismatic => (PLAUSIBLE_LENGTH, "position (m)"),
+        _ => (PLAUSIBLE_ANGLE, "angle (rad)"),
+    };
+    if let Some(position) = joint.locked {
         plausible(
-            &[angle],
-            PLAUSIBLE_ANGLE,
+            &[position],
+            position_limit,
             at.key("locked"),
-            "locked angle (rad)",
+            &format!("locked {unit}"),
         )?;
     }
-    if joint.kind == JointKind::Revolute && norm(&joint.axis) < 1e-12 {
+    if joint.kind.has_position() && norm(&joint.axis) < 1e-12 {
         return Err(Located::new(
             at.key("axis"),
             format!(
@@ -430,40 +479,92 @@ fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {
             ));
         }
     }
-    if let Some(angle) = joint.locked {
-        if joint.kind != JointKind::Revolute {
-            return Err(Located::new(
-                at.key("locked"),
-                "only a revolute joint can be locked",
-            ));
-        }
-        if !angle.is_finite() {
-            return Err(Located::new(
-                at.key("locked"),
-                "locked angle must be a finite number (rad)",
-            ));
-        }
-    }
-    let moving = joint.kind == JointKind::Revolute && joint.locked.is_none();
-    if !moving && *e != JointEffects::default() {
+    validate_hold(joint, &at)?;
+    if !joint.is_free() && *e != JointEffects::default() {
         return Err(Located::new(
             at.key("effects"),
             format!(
-                "joint `{}` does not move (fixed or locked), so it cannot have effects",
+                "joint `{}` does not move alone (fixed, locked or a mimic), so it cannot have effects",
                 joint.name
             ),
         ));
     }
-    if let Some(l) = joint.limits
-        && (!finite(&[l.lower, l.upper]) || l.lower > l.upper)
-    {
+    if let Some(l) = joint.limits {
+        validate_limits(&l, &at.key("limits"))?;
+    }
+    Ok(())
+}
+
+/// `locked` and `mimic`: only on joints with a position, not both, finite.
+fn validate_hold(joint: &Joint, at: &KeyPath) -> Result<(), Located> {
+    if joint.locked.is_some() && !joint.kind.has_position() {
         return Err(Located::new(
-            at.key("limits"),
+            at.key("locked"),
+            "only a revolute or prismatic joint can be locked",
+        ));
+    }
+    let Some(mimic) = &joint.mimic else {
+        return Ok(());
+    };
+    let at = at.key("mimic");
+    if !joint.kind.has_position() {
+        return Err(Located::new(
+            at,
+            "only a revolute or prismatic joint can follow another",
+        ));
+    }
+    if joint.locked.is_some() {
+        return Err(Located::new(
+            at,
             format!(
-                "limits need finite lower <= upper, found {} > {}",
-                l.lower, l.upper
+                "joint `{}` is locked and a mimic: remove one (a mimic is held when its master is locked)",
+                joint.name
             ),
         ));
+    }
+    if !mimic.multiplier.is_finite() || !mimic.offset.is_finite() {
+        return Err(Located::new(
+            at,
+            "mimic multiplier and offset must be finite numbers",
+        ));
+    }
+    plausible(
+        &[mimic.multiplier, mimic.offset],
+        PLAUSIBLE_EFFECT,
+        at,
+        "mimic multiplier or offset",
+    )
+}
+
+/// Both position limits or neither, finite, lower <= upper; speeds and
+/// efforts finite and >= 0.
+fn validate_limits(l: &Limits, at: &KeyPath) -> Result<(), Located> {
+    match (l.lower, l.upper) {
+        (Some(lower), Some(upper))
+            if !(lower.is_finite() && upper.is_finite() && lower <= upper) =>
+        {
+            return Err(Located::new(
+                at.clone(),
+                format!("limits need finite lower <= upper, found {lower} > {upper}"),
+            ));
+        }
+        (Some(_), None) | (None, Some(_)) => {
+            return Err(Located::new(
+                at.clone(),
+                "give both `lower` and `upper`, or neither (a continuous joint)",
+            ));
+        }
+        _ => {}
+    }
+    for (key, value) in [("velocity", l.velocity), ("effort", l.effort)] {
+        if let Some(v) = value
+            && !(v.is_finite() && v >= 0.0)
+        {
+            return Err(Located::new(
+                at.key(key),
+                format!("{key} limit must be a finite number >= 0, found {v}"),
+            ));
+        }
     }
     Ok(())
 }

@@ -12,7 +12,7 @@ use proc_macro2::TokenStream;
 use quote::quote;
 
 use crate::crosscheck;
-use crate::description::Description;
+use crate::description::{Description, JointKind};
 use crate::emit::{Argument, Function, Shape};
 use crate::fingerprint::{FINGERPRINT_PREFIX, fingerprint, generator_version};
 use crate::lagrangian;
@@ -121,6 +121,21 @@ fn header(
         .iter()
         .map(|b| format!("{:?}", b.joint))
         .collect();
+    let sliding: Vec<String> = description
+        .chain()
+        .bodies
+        .iter()
+        .filter(|b| b.kind == JointKind::Prismatic)
+        .map(|b| format!("{:?}", b.joint))
+        .collect();
+    let units = if sliding.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "// Prismatic joints ({}): q in m, qd in m/s, qdd in m/s^2, tau in N.\n",
+            sliding.join(", ")
+        )
+    };
     let check = if checked {
         "equal to Symbolica's expanded Lagrangian at generation (tau and regressor)"
     } else {
@@ -133,7 +148,7 @@ fn header(
          // or run `cargo run -p sdnn-codegen -- {label}`.\n\
          // Robot: {robot:?}; {dof} moving joints ({joints}).\n\
          // Run-time arithmetic operations: {ops}; {check}.\n\
-         // tau = M(q) qdd + c(q, qd) + g(q) + effects(qd); M includes armature.\n\n",
+         // tau = M(q) qdd + c(q, qd) + g(q) + effects(qd); M includes armature.\n{units}\n",
         version = generator_version(),
         label = source_label,
         fp = fingerprint(toml_source),

@@ -1,8 +1,9 @@
 //! The symbolic Lagrangian of a serial chain and its Euler-Lagrange equations,
 //! derived with Symbolica.
 //!
-//! Joint angles enter through `s_i = sin(q_i)` and `c_i = cos(q_i)`, so every
-//! quantity is a polynomial in `s, c, qd, qdd` and in the ten inertial
+//! Joint angles enter through `s_i = sin(q_i)` and `c_i = cos(q_i)` (a
+//! prismatic joint's position through q_i itself), so every
+//! quantity is a polynomial in `s, c, q, qd, qdd` and in the ten inertial
 //! parameters of each body (m, m*c, inertia about the body origin), kept as
 //! symbols. Kinematics and energies are built as Symbolica expressions;
 //! the Lagrangian is then turned into an exact (rational) Symbolica
@@ -10,7 +11,8 @@
 //!
 //!   tau_i = d/dt dL/dqd_i - dL/dq_i
 //!         = sum_j (d/dq_j dL/dqd_i) qd_j + (d/dqd_j dL/dqd_i) qdd_j - dL/dq_i,
-//!   d/dq_j = c_j d/ds_j - s_j d/dc_j   (chain rule through sin and cos).
+//!   d/dq_j = c_j d/ds_j - s_j d/dc_j   (chain rule through sin and cos;
+//!                                       d/dq_j itself for a prismatic joint).
 //!
 //! The torque is linear in the parameters, so its coefficients are the
 //! regressor columns. This module must only run on the Symbolica thread
@@ -27,6 +29,7 @@ use symbolica::symbol;
 use crate::emit::Input;
 use crate::program::Poly;
 use crate::reduce::Chain;
+use crate::schema::JointKind;
 
 type V3 = [Atom; 3];
 type M3 = [[Atom; 3]; 3];
@@ -63,6 +66,7 @@ pub fn inputs(dof: usize) -> Vec<Input> {
 struct Symbols {
     sin: Vec<Symbol>,
     cos: Vec<Symbol>,
+    q: Vec<Symbol>,
     qd: Vec<Symbol>,
     qdd: Vec<Symbol>,
     /// Ten inertial parameters per body.
@@ -82,6 +86,7 @@ impl Symbols {
         Symbols {
             sin: per_joint("s"),
             cos: per_joint("c"),
+            q: per_joint("q"),
             qd: per_joint("qd"),
             qdd: per_joint("qdd"),
             params: (1..=dof)
@@ -90,10 +95,10 @@ impl Symbols {
         }
     }
 
-    /// Polynomial variable order: s, c, qd, qdd per joint, then parameters.
+    /// Polynomial variable order: s, c, q, qd, qdd per joint, then parameters.
     fn variables(&self) -> Vec<PolyVariable> {
-        let joints =
-            (0..self.sin.len()).flat_map(|i| [self.sin[i], self.cos[i], self.qd[i], self.qdd[i]]);
+        let joints = (0..self.sin.len())
+            .flat_map(|i| [self.sin[i], self.cos[i], self.q[i], self.qd[i], self.qdd[i]]);
         joints
             .chain(self.params.iter().flatten().copied())
             .map(PolyVariable::from)
@@ -108,7 +113,12 @@ pub fn derive(chain: &Chain) -> Result<RigidBodyTorque, String> {
     let lagrangian = lagrangian(chain, &symbols)?;
     let variables = std::sync::Arc::new(symbols.variables());
     let l: Polynomial = lagrangian.to_polynomial(&Q, variables.clone());
-    let index = VariableIndex { dof };
+    let prismatic = chain
+        .bodies
+        .iter()
+        .map(|b| b.kind == JointKind::Prismatic)
+        .collect();
+    let index = VariableIndex { dof, prismatic };
     let mut regressor = Vec::with_capacity(dof);
     for i in 0..dof {
         let tau = euler_lagrange(&l, i, &index);
@@ -120,23 +130,28 @@ pub fn derive(chain: &Chain) -> Result<RigidBodyTorque, String> {
 /// Positions of the symbols in the polynomial's variable list.
 struct VariableIndex {
     dof: usize,
+    /// Per joint: whether it slides (its position is the variable q).
+    prismatic: Vec<bool>,
 }
 
 impl VariableIndex {
     fn sin(&self, i: usize) -> usize {
-        4 * i
+        5 * i
     }
     fn cos(&self, i: usize) -> usize {
-        4 * i + 1
+        5 * i + 1
+    }
+    fn q(&self, i: usize) -> usize {
+        5 * i + 2
     }
     fn qd(&self, i: usize) -> usize {
-        4 * i + 2
+        5 * i + 3
     }
     fn qdd(&self, i: usize) -> usize {
-        4 * i + 3
+        5 * i + 4
     }
     fn parameter(&self, body: usize, k: usize) -> usize {
-        4 * self.dof + 10 * body + k
+        5 * self.dof + 10 * body + k
     }
 }
 
@@ -151,8 +166,11 @@ fn euler_lagrange(l: &Polynomial, i: usize, at: &VariableIndex) -> Polynomial {
     tau
 }
 
-/// d p / d q_j = c_j dp/ds_j - s_j dp/dc_j.
+/// d p / d q_j = c_j dp/ds_j - s_j dp/dc_j (dp/dq_j for a prismatic joint).
 fn d_dq(p: &Polynomial, j: usize, at: &VariableIndex) -> Polynomial {
+    if at.prismatic[j] {
+        return p.derivative(at.q(j));
+    }
     times_variable(&p.derivative(at.sin(j)), at.cos(j))
         - times_variable(&p.derivative(at.cos(j)), at.sin(j))
 }
@@ -180,6 +198,7 @@ fn split_by_parameter(tau: &Polynomial, at: &VariableIndex) -> Vec<Poly> {
             at_joint[1] = u32::from(exponents[at.cos(j)]);
             at_joint[2] = u32::from(exponents[at.qd(j)]);
             at_joint[3] = u32::from(exponents[at.qdd(j)]);
+            at_joint[5] = u32::from(exponents[at.q(j)]);
         }
         columns[k].push((program, coefficient.to_f64()));
     }
@@ -198,14 +217,26 @@ fn lagrangian(chain: &Chain, symbols: &Symbols) -> Result<Atom, String> {
     let mut kinetic = Atom::num(0);
     let mut potential = Atom::num(0);
     for (i, body) in chain.bodies.iter().enumerate() {
-        let joint = rotation(&body.axis, symbols.sin[i], symbols.cos[i])?;
-        let r = expand_matrix(&mat_mul(&numeric_matrix(&body.rotation)?, &joint));
-        let rt = transpose(&r);
-        let p = numeric_vector(&body.translation)?;
-        let axis = numeric_vector(&body.axis)?;
         let qd = Atom::var(symbols.qd[i]);
+        let axis = numeric_vector(&body.axis)?;
+        let fixed = numeric_matrix(&body.rotation)?;
+        let mut p = numeric_vector(&body.translation)?;
+        let r = if body.kind == JointKind::Prismatic {
+            let travel = scale(&mat_vec(&fixed, &axis), &Atom::var(symbols.q[i]));
+            p = expand_vector(&add(&p, &travel));
+            fixed
+        } else {
+            let joint = rotation(&body.axis, symbols.sin[i], symbols.cos[i])?;
+            expand_matrix(&mat_mul(&fixed, &joint))
+        };
+        let rt = transpose(&r);
         v = expand_vector(&mat_vec(&rt, &add(&v, &cross(&w, &p))));
-        w = expand_vector(&add(&mat_vec(&rt, &w), &scale(&axis, &qd)));
+        w = expand_vector(&mat_vec(&rt, &w));
+        if body.kind == JointKind::Prismatic {
+            v = expand_vector(&add(&v, &scale(&axis, &qd)));
+        } else {
+            w = expand_vector(&add(&w, &scale(&axis, &qd)));
+        }
         world_origin = expand_vector(&add(&world_origin, &mat_vec(&world_rotation, &p)));
         world_rotation = expand_matrix(&mat_mul(&world_rotation, &r));
 

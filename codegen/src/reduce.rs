@@ -1,6 +1,7 @@
-//! DOF reduction: fixed and locked joints are lumped into the moving body
-//! they hang from (thesis Eq. 2.1-2.9, with the full parallel-axis term),
-//! leaving a serial chain of revolute joints.
+//! DOF reduction: fixed and held joints (locked, or mimics of a locked
+//! joint) are lumped into the moving body they hang from (thesis Eq.
+//! 2.1-2.9, with the full parallel-axis term), leaving a serial chain of
+//! revolute and prismatic joints.
 
 use std::collections::HashMap;
 
@@ -17,9 +18,10 @@ pub struct Chain {
     pub bodies: Vec<Body>,
 }
 
-/// A moving body: everything rigidly attached after one revolute joint.
+/// A moving body: everything rigidly attached after one moving joint.
 ///
-/// Its frame is the joint frame rotated by q about `axis`. The joint frame is
+/// Its frame is the joint frame rotated by q about `axis` (revolute) or
+/// moved by q along it (prismatic). The joint frame is
 /// `rotation`/`translation` away from the previous body's frame (the base
 /// frame for the first body).
 #[derive(Debug, Clone, PartialEq)]
@@ -30,7 +32,9 @@ pub struct Body {
     pub link: String,
     pub rotation: Matrix3<f64>,
     pub translation: Vector3<f64>,
-    /// Unit rotation axis in the joint frame.
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Unit rotation axis or direction of travel in the joint frame.
     pub axis: Vector3<f64>,
     pub inertial: Inertial,
     pub effects: JointEffects,
@@ -184,12 +188,13 @@ pub(crate) fn reduce(
             let origin_rotation = placement.rotation * rpy_matrix(&joint.origin.rpy);
             let origin_translation =
                 placement.rotation * Vector3::from(joint.origin.xyz) + placement.translation;
-            let child = if is_moving(joint) {
+            let child = if joint.is_free() {
                 bodies.push(Body {
                     joint: joint.name.clone(),
                     link: joint.child.clone(),
                     rotation: origin_rotation,
                     translation: origin_translation,
+                    kind: joint.kind,
                     axis: Vector3::from(joint.axis).normalize(),
                     inertial: Inertial::ZERO,
                     effects: joint.effects,
@@ -203,16 +208,11 @@ pub(crate) fn reduce(
                     translation: Vector3::zeros(),
                 }
             } else {
-                let angle = joint.locked.unwrap_or(0.0);
-                let turn = if joint.kind == JointKind::Revolute {
-                    axis_angle(&Vector3::from(joint.axis), angle)
-                } else {
-                    Matrix3::identity()
-                };
+                let (turn, shift) = held_motion(description, joint)?;
                 Placement {
                     body: placement.body,
                     rotation: origin_rotation * turn,
-                    translation: origin_translation,
+                    translation: origin_translation + origin_rotation * shift,
                 }
             };
             stack.push((joint.child.clone(), child));
@@ -236,8 +236,46 @@ fn children_by_parent<'a>(description: &Tree<'a>) -> HashMap<&'a str, Vec<usize>
     children
 }
 
-fn is_moving(joint: &Joint) -> bool {
-    joint.kind == JointKind::Revolute && joint.locked.is_none()
+/// The rotation and the shift (joint axes) of a joint that does not move
+/// alone: fixed, locked, or a mimic of a locked joint.
+fn held_motion(
+    description: &Tree<'_>,
+    joint: &Joint,
+) -> Result<(Matrix3<f64>, Vector3<f64>), Located> {
+    let position = held_position(description, joint)?;
+    let axis = Vector3::from(joint.axis);
+    Ok(match joint.kind {
+        JointKind::Revolute => (axis_angle(&axis, position), Vector3::zeros()),
+        JointKind::Prismatic => (Matrix3::identity(), axis.normalize() * position),
+        JointKind::Fixed => (Matrix3::identity(), Vector3::zeros()),
+    })
+}
+
+/// The position of a held joint: its lock, or its master's times the
+/// multiplier plus the offset.
+fn held_position(description: &Tree<'_>, joint: &Joint) -> Result<f64, Located> {
+    let Some(mimic) = &joint.mimic else {
+        return Ok(joint.locked.unwrap_or(0.0));
+    };
+    let master = description
+        .joints
+        .iter()
+        .find(|j| j.name == mimic.joint)
+        .expect("validated mimic master");
+    match master.locked {
+        Some(value) => Ok(mimic.multiplier * value + mimic.offset),
+        None => Err(Located::new(
+            KeyPath::root()
+                .key("joints")
+                .index(joint_index(description, &joint.name))
+                .key("mimic"),
+            format!(
+                "joint `{}` follows `{}`, which moves: joints coupled on the chain are not \
+                 supported; lock `{}` (its mimics follow it)",
+                joint.name, master.name, master.name
+            ),
+        )),
+    }
 }
 
 fn link_inertial(link: &Link) -> Option<Inertial> {
@@ -269,7 +307,7 @@ fn order_serial(
     if bodies.is_empty() {
         return Err(Located::new(
             KeyPath::root().key("joints"),
-            "the description has no moving joint: add a revolute joint that is not locked",
+            "the description has no moving joint: add a revolute or prismatic joint that is not locked",
         ));
     }
     let mut order = Vec::with_capacity(bodies.len());

@@ -43,8 +43,35 @@ pub struct Inertia {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum JointKind {
+    /// Turns about `axis`: q in rad, effects in N m.
     Revolute,
+    /// Slides along `axis`: q in m, effects in N.
+    Prismatic,
     Fixed,
+}
+
+impl JointKind {
+    /// Revolute and prismatic joints have a position q.
+    pub fn has_position(self) -> bool {
+        self != JointKind::Fixed
+    }
+}
+
+/// A joint whose position follows another's (URDF `<mimic>`):
+/// q = multiplier * q_master + offset.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mimic {
+    /// The joint it follows.
+    pub joint: String,
+    #[serde(default = "one")]
+    pub multiplier: f64,
+    #[serde(default)]
+    pub offset: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// A joint connecting `parent` to `child`.
@@ -59,16 +86,27 @@ pub struct Joint {
     /// Joint frame in the parent link frame.
     #[serde(default)]
     pub origin: Origin,
-    /// Rotation axis in the joint frame; normalized on load.
+    /// Rotation axis (revolute) or direction of travel (prismatic) in the
+    /// joint frame; normalized on load.
     #[serde(default = "default_axis")]
     pub axis: [f64; 3],
     #[serde(default)]
     pub limits: Option<Limits>,
-    /// A revolute joint held at this angle (rad): lumped like a fixed joint.
+    /// A joint held at this position (rad or m): lumped like a fixed joint.
     #[serde(default)]
     pub locked: Option<f64>,
+    /// The joint follows another one's position instead of moving alone.
+    #[serde(default)]
+    pub mimic: Option<Mimic>,
     #[serde(default)]
     pub effects: JointEffects,
+}
+
+impl Joint {
+    /// A joint that moves on its own: a degree of freedom of the chain.
+    pub fn is_free(&self) -> bool {
+        self.kind.has_position() && self.locked.is_none() && self.mimic.is_none()
+    }
 }
 
 /// A frame offset: translation, then roll-pitch-yaw (fixed axes x, y, z).
@@ -81,19 +119,31 @@ pub struct Origin {
     pub rpy: [f64; 3],
 }
 
-/// Joint limits; informative for the generator, used by trajectory tools.
+/// Joint limits in the joint's units (rad or m; rad/s or m/s; N m or N);
+/// informative for the generator, used by the virtual robot and trajectory
+/// tools. A continuous joint has no position limits.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Limits {
-    pub lower: f64,
-    pub upper: f64,
+    #[serde(default)]
+    pub lower: Option<f64>,
+    #[serde(default)]
+    pub upper: Option<f64>,
     #[serde(default)]
     pub velocity: Option<f64>,
     #[serde(default)]
     pub effort: Option<f64>,
 }
 
-/// Per-joint effects added to the rigid-body torque:
+impl Limits {
+    /// The position range, when the joint has one.
+    pub fn position(&self) -> Option<(f64, f64)> {
+        self.lower.zip(self.upper)
+    }
+}
+
+/// Per-joint effects added to the rigid-body torque (force, for a
+/// prismatic joint; every unit's radian reads metre there):
 /// `armature*qdd + viscous*qd + coulomb*sign(qd) + coulomb_asymmetry*|sign(qd)|
 /// + stribeck*sign(qd)*exp(-(qd/stribeck_velocity)^2) + offset`, and the
 /// torques of the position alone (part of the generated `gravity`): a joint

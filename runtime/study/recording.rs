@@ -2,17 +2,26 @@
 //! controller model's limits, tracked on the plant and recorded with sensor
 //! noise; and the open-loop replay of each model's torques on the plant.
 
+use codegen::JointKind;
+
 use super::*;
 
 /// Joint limits of the random trajectories: the description's position
-/// limits (+-pi for a joint without limits), its velocity limits capped at
-/// the study's velocity cap, and the study's acceleration cap.
+/// limits (+-pi for a revolute joint without limits, +-0.1 m for a
+/// prismatic one), its velocity limits capped at the study's velocity cap,
+/// and the study's acceleration cap.
 pub fn limits(model: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
     let description = parsed_description(model)?;
     let bodies = &description.chain().bodies;
     let position = bodies
         .iter()
-        .map(|b| b.limits.map_or((-PI, PI), |l| (l.lower, l.upper)))
+        .map(|b| {
+            let unlimited = match b.kind {
+                JointKind::Prismatic => (-0.1, 0.1),
+                _ => (-PI, PI),
+            };
+            b.limits.and_then(|l| l.position()).unwrap_or(unlimited)
+        })
         .collect();
     let velocity = bodies
         .iter()

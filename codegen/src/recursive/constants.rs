@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 use super::V3;
 use crate::program::{Dag, NodeId};
 use crate::reduce::{Body, Chain};
-use crate::schema::EFFECTS_PER_JOINT;
+use crate::schema::{EFFECTS_PER_JOINT, JointKind};
 
 /// Rotation entries closer than this to 0 or +-1 are taken as exact.
 pub const SNAP: f64 = 1e-15;
@@ -168,15 +168,26 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
     // in the programs.
     named(dag, stribeck_velocity(i), e.stribeck_velocity, false);
     named(dag, ripple_cycles(i), e.ripple_cycles, false);
-    let doc = format!(
-        "Joint {i} ({:?}): origin in the previous link's axes (m), rotation of its \
-         frame (entries within 1e-15 of 0 or +-1 made exact), unit axis; armature \
-         (kg m^2), viscous (N m s/rad), Coulomb (N m), offset (N m), Coulomb \
-         asymmetry (N m), spring (N m/rad), Stribeck excess (N m), ripple sine and \
-         cosine amplitudes (N m); the spring's rest angle (rad), the Stribeck \
-         velocity (rad/s) and the ripple's periods per revolution.",
-        body.joint
-    );
+    let doc = match body.kind {
+        JointKind::Prismatic => format!(
+            "Joint {i} ({:?}, prismatic): origin in the previous link's axes (m), rotation \
+             of its frame (entries within 1e-15 of 0 or +-1 made exact), unit direction of \
+             travel; armature (kg), viscous (N s/m), Coulomb (N), offset (N), Coulomb \
+             asymmetry (N), spring (N/m), Stribeck excess (N), ripple sine and cosine \
+             amplitudes (N); the spring's rest position (m), the Stribeck velocity (m/s) \
+             and the ripple's periods per 2 pi m of travel.",
+            body.joint
+        ),
+        _ => format!(
+            "Joint {i} ({:?}): origin in the previous link's axes (m), rotation of its \
+             frame (entries within 1e-15 of 0 or +-1 made exact), unit axis; armature \
+             (kg m^2), viscous (N m s/rad), Coulomb (N m), offset (N m), Coulomb \
+             asymmetry (N m), spring (N m/rad), Stribeck excess (N m), ripple sine and \
+             cosine amplitudes (N m); the spring's rest angle (rad), the Stribeck \
+             velocity (rad/s) and the ripple's periods per revolution.",
+            body.joint
+        ),
+    };
     let leaves = JointLeaves {
         translation,
         rotation,

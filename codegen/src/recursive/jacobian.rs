@@ -14,7 +14,7 @@ impl Tracer<'_> {
         let zero = self.dag.constant(0.0);
         let mut twists: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
         for (k, rotation) in rotations.iter().enumerate() {
-            let p = self.joint(k).translation;
+            let p = self.origin(k);
             let mut row = Vec::with_capacity(k + 1);
             for &(w, v) in twists.last().into_iter().flatten() {
                 let wxp = self.cross(w, p);
@@ -24,7 +24,12 @@ impl Tracer<'_> {
                     self.in_body_axes(rotation, v),
                 ));
             }
-            row.push((self.joint(k).axis, [zero; 3]));
+            let z = self.joint(k).axis;
+            row.push(if self.prismatic(k) {
+                ([zero; 3], z)
+            } else {
+                (z, [zero; 3])
+            });
             twists.push(row);
         }
         twists

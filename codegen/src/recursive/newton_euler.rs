@@ -1,8 +1,12 @@
 //! tau, gravity and Coriolis by the recursive Newton-Euler form: joint
 //! rotations, motions outwards from the base, wrenches inwards from the tip.
+//! A revolute joint turns its body about the axis; a prismatic joint keeps
+//! the joint frame's orientation and moves the body's origin along the
+//! axis by q, and takes the force's axis component instead of the moment's.
 
 use super::{COS, Q, QD, QDD, RIPPLE_COS, RIPPLE_SIN, SIGN, SIN, STRIBECK, Tracer, V3, constants};
 use crate::program::{Dag, NodeId};
+use crate::schema::JointKind;
 
 /// A joint rotation as a product of stages (rows each), parent-most first.
 pub struct Rotation(Vec<[V3; 3]>);
@@ -30,6 +34,9 @@ impl Tracer<'_> {
     /// makes the stages nearly free, a dense R_fixed favours one matrix.
     /// The choice depends on which entries are 0 or +-1 only.
     pub(super) fn rotation(&mut self, i: usize) -> Rotation {
+        if self.prismatic(i) {
+            return Rotation(vec![self.joint(i).rotation]);
+        }
         let mut dag = Dag::default();
         let leaves = constants::leaves(&mut dag, self.chain);
         let mut scratch = Tracer {
@@ -121,23 +128,55 @@ impl Tracer<'_> {
         };
         let mut motions = Vec::with_capacity(state.len());
         for (i, s) in state.iter().enumerate() {
-            let (p, z) = (self.joint(i).translation, self.joint(i).axis);
-            // Acceleration of the joint origin, parent axes.
-            let relative = self.point_acceleration(&parent, p);
+            let z = self.joint(i).axis;
+            let origin = self.origin(i);
+            // Acceleration of the body origin, parent axes.
+            let relative = self.point_acceleration(&parent, origin);
             let a = self.add(parent.a, relative);
-            let a = self.in_body_axes(&rotations[i], a);
+            let mut a = self.in_body_axes(&rotations[i], a);
             let w_in = self.in_body_axes(&rotations[i], parent.w);
             let wd_in = self.in_body_axes(&rotations[i], parent.wd);
-            let spin = self.scale(z, s.qd);
-            let w = self.add(w_in, spin);
-            let transport = self.cross(w_in, spin);
-            let joint_acceleration = self.scale(z, s.qdd);
-            let wd = self.add(wd_in, joint_acceleration);
-            let wd = self.add(wd, transport);
+            let (w, wd) = if self.prismatic(i) {
+                // Coriolis 2 w x (z qd) and the sliding acceleration z qdd.
+                let slide = self.scale(z, s.qd);
+                let two = self.dag.constant(2.0);
+                let w_twice = self.scale(w_in, two);
+                let coriolis = self.cross(w_twice, slide);
+                let sliding = self.scale(z, s.qdd);
+                a = self.add(a, coriolis);
+                a = self.add(a, sliding);
+                (w_in, wd_in)
+            } else {
+                let spin = self.scale(z, s.qd);
+                let w = self.add(w_in, spin);
+                let transport = self.cross(w_in, spin);
+                let joint_acceleration = self.scale(z, s.qdd);
+                let wd = self.add(wd_in, joint_acceleration);
+                (w, self.add(wd, transport))
+            };
             parent = Motion { w, wd, a };
             motions.push(parent);
         }
         motions
+    }
+
+    /// Whether joint `i` slides.
+    pub(super) fn prismatic(&self, i: usize) -> bool {
+        self.chain.bodies[i].kind == JointKind::Prismatic
+    }
+
+    /// Body `i`'s origin in the previous body's axes: the joint origin p,
+    /// plus R z q for a prismatic joint.
+    pub(super) fn origin(&mut self, i: usize) -> V3 {
+        let p = self.joint(i).translation;
+        if !self.prismatic(i) {
+            return p;
+        }
+        let (rotation, z) = (self.joint(i).rotation, self.joint(i).axis);
+        let direction = self.mat_vec(&rotation, z);
+        let q = self.input(i, Q);
+        let travel = self.scale(direction, q);
+        self.add(p, travel)
     }
 
     /// wd x r + w x (w x r) = U r, the acceleration of a body point at r
@@ -227,14 +266,15 @@ impl Tracer<'_> {
             if let Some((f, m)) = outer {
                 let f = self.in_parent_axes(&rotations[i + 1], f);
                 let m = self.in_parent_axes(&rotations[i + 1], m);
-                let p = self.joint(i + 1).translation;
+                let p = self.origin(i + 1);
                 let lever = self.cross(p, f);
                 force = self.add(force, f);
                 moment = self.add(moment, m);
                 moment = self.add(moment, lever);
             }
             let z = self.joint(i).axis;
-            tau[i] = self.dot(z, moment);
+            let along = if self.prismatic(i) { force } else { moment };
+            tau[i] = self.dot(z, along);
             outer = Some((force, moment));
         }
         tau

@@ -8,6 +8,7 @@
 //! axis is a coordinate axis. Kinetic and potential energy are unchanged, so
 //! tau, M, g and c are the same (the classical base-parameter regrouping for
 //! revolute joints); the regressor keeps the description's parameters.
+//! A body behind a prismatic joint keeps all its parameters.
 
 use super::{SNAP, Tracer, V3};
 use crate::program::NodeId;
@@ -32,6 +33,11 @@ impl Tracer<'_> {
         let n = self.chain.bodies.len();
         let mut parameters: Vec<BodyParameters> = (0..n).map(|i| self.standard(i)).collect();
         for j in (0..n).rev() {
+            if self.prismatic(j) {
+                // A sliding body's mass and first moment feel its joint;
+                // it keeps its parameters.
+                continue;
+            }
             let BodyParameters { m, h, inertia } = parameters[j];
             let z = self.joint(j).axis;
             let along = self.dot(h, z);
