@@ -179,6 +179,29 @@ pub fn parsed_description(
     )
 }
 
+/// Metres per radian at which a prismatic joint's motion compares with a
+/// revolute joint's: a linear axis sensed and moved like a revolute joint's
+/// point 0.1 m from its axis. Speed thresholds and sensor noise given in
+/// rad and rad/s are scaled by it on prismatic joints.
+pub const PRISMATIC_LEVER: f64 = 0.1;
+
+/// Per joint 1 (revolute) or [`PRISMATIC_LEVER`] (prismatic); 1 for every
+/// joint when the model's description cannot be read.
+pub fn joint_levers(model: &dyn Dynamics) -> Vec<f64> {
+    match parsed_description(model) {
+        Ok(d) => d
+            .chain()
+            .bodies
+            .iter()
+            .map(|b| match b.kind {
+                codegen::JointKind::Prismatic => PRISMATIC_LEVER,
+                _ => 1.0,
+            })
+            .collect(),
+        Err(_) => vec![1.0; model.dof()],
+    }
+}
+
 /// Names of every compiled model, sorted.
 pub fn model_names() -> Vec<&'static str> {
     crate::models::MODELS.iter().map(|m| m.name()).collect()

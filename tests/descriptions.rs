@@ -153,9 +153,39 @@ fn non_positive_definite_inertia_is_rejected() {
         &[
             "models/robot.toml:11:",
             "`links[1].inertia`",
-            "not positive definite",
+            "not positive semi-definite",
         ],
     );
+}
+
+/// The inertias real files carry: a point mass, a thin rod, a rod whose
+/// moments were rounded (slightly negative, a triangle breach of rounding)
+/// are physical; a clear breach still needs `nonphysical_inertia`.
+#[test]
+fn point_masses_and_rounded_thin_rods_are_physical() {
+    let from = "inertia = { ixx = 0.01, iyy = 0.02, izz = 0.02 }";
+    for physical in [
+        "inertia = { ixx = 0.0, iyy = 0.0, izz = 0.0 }",
+        "inertia = { ixx = 0.0, iyy = 0.02, izz = 0.02 }",
+        "inertia = { ixx = -1e-14, iyy = 0.0200001, izz = 0.02 }",
+        "inertia = { ixx = 1e-9, iyy = 0.020000009, izz = 0.02 }",
+    ] {
+        assert!(VALID.contains(from));
+        let source = VALID.replacen(from, physical, 1);
+        assert!(
+            parse(&source).is_ok(),
+            "{physical}: {:?}",
+            parse(&source).err()
+        );
+    }
+    let message = error_after(from, "inertia = { ixx = 0.001, iyy = 0.01, izz = 0.02 }");
+    assert_mentions(&message, &["triangle inequality", "nonphysical_inertia"]);
+    let kept = VALID.replacen(
+        from,
+        "inertia = { ixx = 0.001, iyy = 0.01, izz = 0.02 }\nnonphysical_inertia = \"CAD export\"",
+        1,
+    );
+    assert!(parse(&kept).is_ok());
 }
 
 #[test]

@@ -7,6 +7,7 @@ mod diagnose;
 mod dynamics;
 mod freshness;
 mod generated_code;
+mod held_joints;
 mod hidden_effects;
 mod hostile;
 mod inertial;

@@ -372,9 +372,9 @@ fn validate_inertia(inertia: &Inertia, link: &Link, at: KeyPath) -> Result<(), L
 }
 
 /// Rounding allowed in the inertia checks: relative to the largest principal
-/// moment (files print about six digits) plus an absolute floor, far below
+/// moment (files print five or six digits) plus an absolute floor, far below
 /// any link of an arm (kg m^2).
-pub const INERTIA_ROUNDING: f64 = 1e-6;
+pub const INERTIA_ROUNDING: f64 = 1e-5;
 pub const INERTIA_FLOOR: f64 = 1e-12;
 
 fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> {

@@ -222,6 +222,10 @@ pub(super) fn stack(
         Vec::new()
     };
     let tilted = tilted_models(model);
+    let moving: Vec<f64> = crate::dynamics::joint_levers(model)
+        .iter()
+        .map(|lever| MOVING * lever)
+        .collect();
     let mut kept = Vec::new();
     let mut durations = Vec::new();
     let mut at_rest = vec![0.0_f64; n];
@@ -242,7 +246,7 @@ pub(super) fn stack(
                 // the torque filter, so every column is compared exactly.
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
-                let rest = rest_velocities(raw, &traj, &settings);
+                let rest = rest_velocities(raw, &traj, &settings, &moving);
                 for (largest, r) in at_rest.iter_mut().zip(&rest) {
                     *largest = largest.max(*r);
                 }
@@ -255,9 +259,9 @@ pub(super) fn stack(
             _ => {
                 let traj = settings.apply(raw)?;
                 let dt = step(&traj);
-                let rest = vec![MOVING; n];
-                for largest in at_rest.iter_mut() {
-                    *largest = largest.max(MOVING);
+                let rest = moving.clone();
+                for (largest, r) in at_rest.iter_mut().zip(&moving) {
+                    *largest = largest.max(*r);
                 }
                 (
                     rows(model, models(&tilted), &traj, &rest, &velocities)?,
@@ -536,7 +540,8 @@ fn smooth_per_joint(
     Ok(())
 }
 
-/// With the thesis preprocessing, joints slower than this (rad/s) are taken
+/// With the thesis preprocessing, joints slower than this (rad/s; times
+/// `dynamics::PRISMATIC_LEVER` in m/s on a prismatic joint) are taken
 /// as at rest for the Coulomb fit: their friction is static, anywhere
 /// between the Coulomb levels, and a measured velocity that small has an
 /// unreliable sign (noise), which would bias the level low. Held-out errors
@@ -546,21 +551,26 @@ pub const MOVING: f64 = 0.02;
 
 /// The at-rest speed of each joint for the Butterworth pipeline: three
 /// standard deviations of the velocity noise left after filtering, at least
-/// [`MOVING`] (slower joints stick or creep, where dry friction is not at
+/// `moving` ([`MOVING`] scaled to the joint; slower joints stick or creep, where dry friction is not at
 /// its sliding level). The
 /// noise's deviation is that of the raw minus the filtered velocity (white
 /// noise above the cut-off), scaled by the share of the band the filter
 /// passes, sqrt(2 fc / fs).
-fn rest_velocities(raw: &Trajectory, filtered: &Trajectory, settings: &Preprocess) -> Vec<f64> {
+fn rest_velocities(
+    raw: &Trajectory,
+    filtered: &Trajectory,
+    settings: &Preprocess,
+    moving: &[f64],
+) -> Vec<f64> {
     let Filter::Butterworth { cutoff_hz } = settings.filter else {
-        return vec![MOVING; raw.dof()];
+        return moving.to_vec();
     };
     let passed = (2.0 * cutoff_hz * step(raw)).min(1.0).sqrt();
     (0..raw.dof())
         .map(|j| {
             let difference = raw.qd().column(j) - filtered.qd().column(j);
             let sigma = (difference.norm_squared() / raw.len().max(1) as f64).sqrt();
-            (3.0 * sigma * passed).max(MOVING)
+            (3.0 * sigma * passed).max(moving[j])
         })
         .collect()
 }

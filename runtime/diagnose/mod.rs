@@ -182,6 +182,22 @@ pub struct Effect {
     pub unconstrained: Option<Unconstrained>,
 }
 
+/// Each joint's kind as the description names it (revolute when the model's
+/// description cannot be read).
+fn joint_kinds(model: &dyn Dynamics) -> Vec<String> {
+    let kinds: Option<Vec<String>> = crate::dynamics::parsed_description(model).ok().map(|d| {
+        d.chain()
+            .bodies
+            .iter()
+            .map(|b| match b.kind {
+                codegen::JointKind::Prismatic => "prismatic".to_string(),
+                _ => "revolute".to_string(),
+            })
+            .collect()
+    });
+    kinds.unwrap_or_else(|| vec!["revolute".to_string(); model.dof()])
+}
+
 /// The diagnosis report (`sdnn diagnose --format json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
@@ -192,6 +208,9 @@ pub struct Diagnosis {
     pub layout: Layout,
     /// Decimated samples diagnosed.
     pub samples: usize,
+    /// Per joint "revolute" (torques in N m, angles in rad) or "prismatic"
+    /// (forces in N, positions in m).
+    pub joint_kinds: Vec<String>,
     /// Residual RMS per joint (N m) and its share of the measured torque RMS.
     pub residual_rms: Vec<f64>,
     pub residual_share: Vec<f64>,
@@ -523,11 +542,22 @@ pub fn diagnose(
         ));
     }
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
+    let joint_kinds = joint_kinds(model);
     Ok(Diagnosis {
         model: model.name().to_string(),
         preprocessing: pipeline.clone(),
         layout,
         samples: data.residual.len() / data.dof,
+        unexplained: unexplained::unexplained(
+            &data,
+            &residuals.after,
+            pipeline
+                .choice
+                .as_ref()
+                .and_then(|c| Some((c.motion_bandwidth_hz?, c.decimated_rate_hz))),
+            &joint_kinds,
+        ),
+        joint_kinds,
         residual_rms: per_joint(&data, |r, _| r * r)
             .iter()
             .map(|v| v.sqrt())
@@ -538,14 +568,6 @@ pub fn diagnose(
         mse_after,
         mse_after_fitted,
         effects,
-        unexplained: unexplained::unexplained(
-            &data,
-            &residuals.after,
-            pipeline
-                .choice
-                .as_ref()
-                .and_then(|c| Some((c.motion_bandwidth_hz?, c.decimated_rate_hz))),
-        ),
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         residuals,

@@ -22,9 +22,10 @@ impl Diagnosis {
         let _ = writeln!(out, "{}", self.preprocessing.summary());
         for j in 0..self.mse_before.len() {
             let (before, after) = (self.mse_before[j], self.mse_after[j]);
+            let torque = self.torque_unit(j + 1);
             let _ = writeln!(
                 out,
-                "joint {}: residual RMS {} N m ({:.1}% of the torque RMS); held-out MSE {} -> {} N m^2 ({})",
+                "joint {}: residual RMS {} {torque} ({:.1}% of the torque RMS); held-out MSE {} -> {} {torque}^2 ({})",
                 j + 1,
                 sig(self.residual_rms[j]),
                 100.0 * self.residual_share[j],
@@ -36,7 +37,7 @@ impl Diagnosis {
             if fitted < 0.8 * after {
                 let _ = writeln!(
                     out,
-                    "  {} N m^2 ({}) with Coulomb friction zero while the joint is at rest: it \
+                    "  {} {torque}^2 ({}) with Coulomb friction zero while the joint is at rest: it \
                      sticks, and there the model's sign(qd) term follows velocity noise",
                     sig(fitted),
                     percent_change(before, fitted)
@@ -46,7 +47,7 @@ impl Diagnosis {
             let _ = writeln!(
                 out,
                 "  residual correlates with velocity {:+.2}, its sign {:+.2}, acceleration {:+.2}, \
-                 gravity load {:+.2}; mean {} N m",
+                 gravity load {:+.2}; mean {} {torque}",
                 r.velocity,
                 r.velocity_sign,
                 r.acceleration,
@@ -60,7 +61,7 @@ impl Diagnosis {
             let _ = writeln!(out, "missing effects (in the order named):");
         }
         for e in &self.effects {
-            let _ = writeln!(out, "  {}", effect_line(e));
+            let _ = writeln!(out, "  {}", self.effect_line(e));
         }
         if let Some(condition) = self.identifiability.condition_number {
             let _ = writeln!(
@@ -86,44 +87,59 @@ impl Diagnosis {
     }
 }
 
-fn effect_line(e: &Effect) -> String {
-    let place = match (e.joint, &e.link) {
-        (Some(j), _) => format!("joint {j}"),
-        (None, Some(link)) => format!("link `{link}`"),
-        (None, None) => "all joints".to_string(),
-    };
-    let values: Vec<String> = e
-        .parameters
-        .iter()
-        .filter(|(_, v)| !v.is_null() && !is_null_array(v))
-        .map(|(name, value)| {
-            let interval = e.ci95.get(name).map_or(String::new(), interval_text);
+impl Diagnosis {
+    /// The unit of joint j's (1-based) torque: N m, or N on a prismatic joint.
+    fn torque_unit(&self, joint: usize) -> &'static str {
+        if self.sliding(joint) { "N" } else { "N m" }
+    }
+
+    fn sliding(&self, joint: usize) -> bool {
+        self.joint_kinds
+            .get(joint - 1)
+            .is_some_and(|k| k == "prismatic")
+    }
+
+    fn effect_line(&self, e: &Effect) -> String {
+        let place = match (e.joint, &e.link) {
+            (Some(j), _) => format!("joint {j}"),
+            (None, Some(link)) => format!("link `{link}`"),
+            (None, None) => "all joints".to_string(),
+        };
+        let values: Vec<String> = e
+            .parameters
+            .iter()
+            .filter(|(_, v)| !v.is_null() && !is_null_array(v))
+            .map(|(name, value)| {
+                let interval = e.ci95.get(name).map_or(String::new(), interval_text);
+                let revolute = unit(e.kind, name);
+                let unit = match e.joint {
+                    Some(j) if self.sliding(j) => linear(revolute),
+                    _ => revolute,
+                };
+                format!("{name} {}{unit}{interval}", value_text(value))
+            })
+            .collect();
+        let whose = match e.joint {
+            Some(j) => format!("joint {j}'s"),
+            None => "the joints'".to_string(),
+        };
+        let ambiguous = if e.ambiguous_with.is_empty() {
+            String::new()
+        } else {
             format!(
-                "{name} {}{}{interval}",
-                value_text(value),
-                unit(e.kind, name)
+                "; ambiguous with {} (see notes)",
+                e.ambiguous_with.join(", ")
             )
-        })
-        .collect();
-    let whose = match e.joint {
-        Some(j) => format!("joint {j}'s"),
-        None => "the joints'".to_string(),
-    };
-    let ambiguous = if e.ambiguous_with.is_empty() {
-        String::new()
-    } else {
+        };
         format!(
-            "; ambiguous with {} (see notes)",
-            e.ambiguous_with.join(", ")
+            "{} on {place}: {}; removes {:.0}% of {whose} held-out MSE ({} {}^2){ambiguous}",
+            e.kind.name(),
+            values.join(", "),
+            100.0 * e.heldout_share,
+            sig(e.heldout_mse_removed),
+            e.joint.map_or("N m", |j| self.torque_unit(j))
         )
-    };
-    format!(
-        "{} on {place}: {}; removes {:.0}% of {whose} held-out MSE ({} N m^2){ambiguous}",
-        e.kind.name(),
-        values.join(", "),
-        100.0 * e.heldout_share,
-        sig(e.heldout_mse_removed)
-    )
+    }
 }
 
 fn is_null_array(v: &serde_json::Value) -> bool {
@@ -188,6 +204,21 @@ fn unit(kind: Kind, name: &str) -> &'static str {
         (_, "mass" | "nominal_mass") => " kg",
         (_, "first_moment" | "nominal_first_moment") => " kg m",
         _ => " m",
+    }
+}
+
+/// A joint effect's unit on a prismatic joint: force for torque, metre
+/// for radian.
+fn linear(revolute: &'static str) -> &'static str {
+    match revolute {
+        " N m s/rad" => " N s/m",
+        " N m" => " N",
+        " kg m^2" => " kg",
+        " N m/rad" => " N/m",
+        " rad" => " m",
+        " rad/s" => " m/s",
+        " per revolution" => " per 2 pi m",
+        other => other,
     }
 }
 

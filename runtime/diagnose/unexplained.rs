@@ -62,6 +62,7 @@ pub(super) fn unexplained(
     data: &Stacked,
     after: &[f64],
     band: Option<(f64, f64)>,
+    joint_kinds: &[String],
 ) -> Vec<Unexplained> {
     let all: Vec<usize> = (0..GENERIC_FEATURES.len()).collect();
     let mut regimes: Vec<&'static str> = GENERIC_FEATURES.iter().map(|f| f.0).collect();
@@ -104,8 +105,12 @@ pub(super) fn unexplained(
                 ),
                 _ => String::new(),
             };
+            let unit = match joint_kinds.get(j).map(String::as_str) {
+                Some("prismatic") => "N",
+                _ => "N m",
+            };
             let text = format!(
-                "joint {}: {:.0}% of the residual left ({} N m RMS) is predictable from the state held \
+                "joint {}: {:.0}% of the residual left ({} {unit} RMS) is predictable from the state held \
                  out, but no candidate effect explains it; it lives in: {}{frequency} — an effect the \
                  model and the candidates lack (see the README's list), or a wrong inertial parameter",
                 j + 1,

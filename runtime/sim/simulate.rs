@@ -202,6 +202,12 @@ pub struct NoiseConfig {
     /// Encoder resolution in rad: recorded angles are rounded to multiples of
     /// it; `None` for none.
     pub angle_resolution: Option<f64>,
+    /// Per joint, metres per radian of the noise (see
+    /// `dynamics::PRISMATIC_LEVER`): a prismatic joint's
+    /// position and velocity noise is the revolute sigma times this lever,
+    /// its force noise the torque sigma divided by it. Empty: 1 for every
+    /// joint.
+    pub lever: Vec<f64>,
 }
 
 impl Default for NoiseConfig {
@@ -212,6 +218,7 @@ impl Default for NoiseConfig {
             velocity_sigma: 0.02,
             angle_sigma: 1e-5,
             angle_resolution: None,
+            lever: Vec::new(),
         }
     }
 }
@@ -225,6 +232,7 @@ impl NoiseConfig {
             velocity_sigma: 0.0,
             angle_sigma: 0.0,
             angle_resolution: None,
+            lever: Vec::new(),
         }
     }
 
@@ -239,8 +247,18 @@ impl NoiseConfig {
                 value: r,
                 reason: "must be positive",
             }),
-            _ => Ok(()),
+            _ => {
+                for &lever in &self.lever {
+                    positive("noise lever", lever)?;
+                }
+                Ok(())
+            }
         }
+    }
+
+    /// Joint j's lever (1 when none is given).
+    fn lever(&self, j: usize) -> f64 {
+        self.lever.get(j).copied().unwrap_or(1.0)
     }
 }
 
@@ -482,21 +500,29 @@ impl Sensors {
         }
     }
 
-    fn noise(&mut self, len: usize, sigma: f64) -> DVector<f64> {
-        DVector::from_fn(len, |_, _| sigma * gaussian(&mut self.rng))
+    /// Noise of joint j's sigma times `scale(lever_j)`.
+    fn noise(&mut self, len: usize, sigma: f64, scale: fn(f64) -> f64) -> DVector<f64> {
+        let config = &self.config;
+        let rng = &mut self.rng;
+        DVector::from_fn(len, |j, _| sigma * scale(config.lever(j)) * gaussian(rng))
     }
 
     fn state(&mut self, q: &DVector<f64>, qd: &DVector<f64>) -> (DVector<f64>, DVector<f64>) {
-        let mut q_meas = q + self.noise(q.len(), self.config.angle_sigma);
+        let along = |lever: f64| lever;
+        let mut q_meas = q + self.noise(q.len(), self.config.angle_sigma, along);
         if let Some(res) = self.config.angle_resolution {
-            q_meas.apply(|x| *x = (*x / res).round() * res);
+            q_meas.iter_mut().enumerate().for_each(|(j, x)| {
+                let step = res * self.config.lever(j);
+                *x = (*x / step).round() * step
+            });
         }
-        let qd_meas = qd + self.noise(qd.len(), self.config.velocity_sigma);
+        let qd_meas = qd + self.noise(qd.len(), self.config.velocity_sigma, along);
         (q_meas, qd_meas)
     }
 
     fn torque(&mut self, tau: &DVector<f64>) -> DVector<f64> {
-        tau.component_mul(&self.torque_gain) + self.noise(tau.len(), self.config.torque_sigma)
+        let noise = self.noise(tau.len(), self.config.torque_sigma, |lever| 1.0 / lever);
+        tau.component_mul(&self.torque_gain) + noise
     }
 }
 

@@ -137,10 +137,13 @@ pub(super) fn record_noisy(
 ) -> Result<crate::sim::simulate::Recording> {
     let reference = WaypointTrajectory::new(waypoints, seed)?;
     let mut sim = SimConfig::default();
+    let bodies = parsed_description(controller)?.chain().bodies.clone();
     let noise = &mut sim.noise;
     noise.torque_sigma *= noise_scale;
     noise.velocity_sigma *= noise_scale;
     noise.angle_sigma *= noise_scale;
+    noise.lever = crate::dynamics::joint_levers(controller);
+    sim.controller.effort_limit = effort_limits(&bodies);
     Ok(simulate(
         &Compiled(plant),
         &Compiled(controller),
@@ -148,6 +151,19 @@ pub(super) fn record_noisy(
         &sim,
         seed,
     )?)
+}
+
+/// The description's effort limits, where any joint has one (the drives
+/// saturate there); a joint without one is not limited.
+fn effort_limits(bodies: &[codegen::Body]) -> Option<Vec<f64>> {
+    let limits: Vec<Option<f64>> = bodies
+        .iter()
+        .map(|b| b.limits.and_then(|l| l.effort).filter(|&e| e > 0.0))
+        .collect();
+    limits
+        .iter()
+        .any(Option::is_some)
+        .then(|| limits.iter().map(|l| l.unwrap_or(f64::MAX)).collect())
 }
 
 /// Thesis 4.3.2: replay each model's torques for the planned motion of the
