@@ -12,6 +12,7 @@ mod hidden_effects;
 mod hostile;
 mod inertial;
 mod lumping;
+mod prismatic;
 mod readers_fuzz;
 mod springs;
 mod stribeck;

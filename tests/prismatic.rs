@@ -1,0 +1,89 @@
+//! A prismatic axis end to end, as a user runs it: the virtual robot
+//! records a gantry (the shipped lift-and-arm turned so its linear axis is
+//! horizontal) whose axis has more viscous friction and a force offset than
+//! its description says, and `sdnn diagnose` with no flags names both, in
+//! N s/m and N.
+
+use crate::util::{Dir, root, sdnn, sdnn_json};
+
+/// The shipped lift with its axis along x, and `effects` on the axis.
+fn gantry(effects: &str) -> String {
+    let lift = std::fs::read_to_string(root().join("models/lift_arm.toml")).unwrap();
+    let nominal = "effects = { armature = 2.0, viscous = 40.0, coulomb = 12.0 }";
+    assert!(
+        lift.contains(nominal) && lift.contains("axis = [0.0, 0.0, 1.0]\nlimits = { lower = 0.0")
+    );
+    lift.replacen(
+        "axis = [0.0, 0.0, 1.0]\nlimits = { lower = 0.0",
+        "axis = [1.0, 0.0, 0.0]\nlimits = { lower = 0.0",
+        1,
+    )
+    .replacen(nominal, effects, 1)
+}
+
+#[test]
+fn viscous_friction_and_a_force_offset_on_a_prismatic_axis_are_named() {
+    let dir = Dir::new();
+    let model = dir.write(
+        "gantry.toml",
+        &gantry("effects = { armature = 2.0, viscous = 40.0, coulomb = 12.0 }"),
+    );
+    let plant = dir.write(
+        "gantry_plant.toml",
+        &gantry("effects = { armature = 2.0, viscous = 90.0, coulomb = 12.0, offset = 8.0 }"),
+    );
+    let recordings = dir.path().join("recordings");
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let run = sdnn(&[
+        "simulate",
+        "--plant",
+        &path(&plant),
+        "--nominal",
+        &path(&model),
+        "--count",
+        "3",
+        "--out",
+        &path(&recordings),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let data: Vec<String> = (1..=3)
+        .map(|k| path(&recordings.join(format!("trajectory_{k:02}.csv"))))
+        .collect();
+    let mut args = vec!["diagnose", "--model", model.to_str().unwrap()];
+    args.push("--data");
+    args.extend(data.iter().map(String::as_str));
+    let text = sdnn(&args);
+    let text = String::from_utf8_lossy(&text.stdout).to_string();
+    args.extend(["--format", "json"]);
+    let report = sdnn_json(&args);
+    assert_eq!(report["joint_kinds"][0], "prismatic");
+    let effects = report["effects"].as_array().unwrap();
+    let named = |kind: &str| {
+        effects
+            .iter()
+            .find(|e| e["kind"] == kind && e["joint"] == 1)
+            .unwrap_or_else(|| panic!("{kind} on the axis not named:\n{text}"))
+    };
+    let viscous = named("viscous_friction")["parameters"]["coefficient"]
+        .as_f64()
+        .unwrap();
+    let offset = named("torque_offset")["parameters"]["offset"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (viscous - 50.0).abs() < 0.15 * 50.0,
+        "viscous {viscous}:\n{text}"
+    );
+    assert!(
+        (offset - 8.0).abs() < 0.15 * 8.0,
+        "offset {offset}:\n{text}"
+    );
+    for unit in [" N s/m (95% CI", " N (95% CI"] {
+        assert!(text.contains(unit), "{unit}:\n{text}");
+    }
+    assert!(!text.contains("N m s/rad"), "{text}");
+}
