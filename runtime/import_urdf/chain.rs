@@ -113,7 +113,7 @@ pub(super) fn select(
     };
     let tip = match &options.tip {
         Some(name) => tree.find_link("--tip", name)?,
-        None => default_tip(tree, given_base, locks)?,
+        None => default_tip(tree, below_free_joints(tree, given_base), locks)?,
     };
     let mut path = path_between(tree, given_base, tip)?;
     let base = match path.iter().rposition(|&j| is_free(tree.kind(j))) {
@@ -247,8 +247,10 @@ fn role(tree: &Tree<'_>, locks: &Locks, joint: usize, on_path: bool) -> Role {
     }
 }
 
-/// A mimic joint whose master is not written is held where the master's
-/// own hold puts it (the master at its `--lock` value, else 0).
+/// A mimic joint follows the joint at the end of its `<mimic>` chain (the
+/// description wants a master that is not a mimic itself), with the
+/// multipliers and offsets composed. Where that master is not written, the
+/// joint is held where the master's own hold puts it (its `--lock`, else 0).
 fn resolve_mimics(
     tree: &Tree<'_>,
     locks: &Locks,
@@ -261,23 +263,55 @@ fn resolve_mimics(
         .map(|(&j, _)| j)
         .collect();
     for j in mimics {
-        let Role::Mimic(mimic) = &roles[&j] else {
-            continue;
+        let role = match ultimate_master(tree, locks, j)? {
+            Some((master, mimic)) if kept.contains(&master) => Role::Mimic(mimic),
+            _ => Role::Locked(held_position(tree, locks, j, 0)),
         };
-        let master = tree.joint_index.get(mimic.joint.as_str()).copied();
-        let joint = tree.joint(j);
-        let Some(master) = master else {
+        roles.insert(j, role);
+    }
+    Ok(())
+}
+
+/// The first joint up the `<mimic>` chain of `joint` that is not a mimic
+/// (or is locked), and the composed coupling to it; None for a cycle or a
+/// master that cannot move.
+fn ultimate_master(
+    tree: &Tree<'_>,
+    locks: &Locks,
+    joint: usize,
+) -> Result<Option<(usize, Mimic)>, ImportError> {
+    let (mut multiplier, mut offset) = (1.0, 0.0);
+    let mut current = joint;
+    for _ in 0..16 {
+        let Some(mimic) = tree
+            .joint(current)
+            .mimic
+            .as_ref()
+            .filter(|_| locks.get(current).is_none())
+        else {
+            let master = Mimic {
+                joint: tree.joint_name(current).to_string(),
+                multiplier,
+                offset,
+            };
+            return Ok(tree
+                .kind(current)
+                .is_single_dof()
+                .then_some((current, master)));
+        };
+        let Some(&next) = tree.joint_index.get(mimic.joint.as_str()) else {
+            let j = tree.joint(current);
             return Err(ImportError::Invalid {
-                element: format!("joint '{}' <mimic> (line {})", joint.name, joint.line),
+                element: format!("joint '{}' <mimic> (line {})", j.name, j.line),
                 message: format!("joint='{}' names no joint of the URDF", mimic.joint),
             });
         };
-        if !kept.contains(&master) || !tree.kind(master).is_single_dof() {
-            let value = held_position(tree, locks, j, 0);
-            roles.insert(j, Role::Locked(value));
-        }
+        // q_current = m q_next + o, and q_joint = M q_current + O.
+        offset += multiplier * mimic.offset;
+        multiplier *= mimic.multiplier;
+        current = next;
     }
-    Ok(())
+    Ok(None)
 }
 
 /// Where a joint is held when nothing written drives it: its `--lock`
@@ -328,13 +362,30 @@ fn check_locks(tree: &Tree<'_>, locks: &Locks, s: &Selection) -> Result<(), Impo
     }
 }
 
-/// Child joints of `link` whose subtrees hold a joint that moves.
+/// Child joints of `link` whose subtrees hold a joint that moves (a free
+/// joint holds an object, not a limb).
 fn moving_children(tree: &Tree<'_>, link: usize, locks: &Locks) -> Vec<usize> {
     tree.child_joints(link)
         .iter()
         .copied()
-        .filter(|&j| !locks.subtree_rigid(tree, j))
+        .filter(|&j| !is_free(tree.kind(j)) && !locks.subtree_rigid(tree, j))
         .collect()
+}
+
+/// Below the last free joint of the single line of joints that starts at
+/// `base` (`world` -floating-> `pelvis`), else `base`.
+fn below_free_joints(tree: &Tree<'_>, base: usize) -> usize {
+    let (mut link, mut below) = (base, base);
+    while let [j] = tree.child_joints(link) {
+        if tree.kind(*j).is_single_dof() {
+            break;
+        }
+        link = tree.child_link(*j);
+        if is_free(tree.kind(*j)) {
+            below = link;
+        }
+    }
+    below
 }
 
 /// Follows the only moving branch from `base` to where it ends or splits

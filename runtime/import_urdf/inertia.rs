@@ -4,16 +4,9 @@
 //! which are physical; a triangle-inequality breach is not, but makers ship
 //! them (Kinova's Gen3 Lite link 3), so it is imported with a warning.
 
+use codegen::description::{INERTIA_FLOOR, INERTIA_ROUNDING};
 use codegen::reduce::rpy_matrix;
 use nalgebra::{Matrix3, SymmetricEigen};
-
-/// Relative tolerance of the triangle inequality, the generator's own: a
-/// breach beyond it needs `nonphysical_inertia` in the description.
-const TRIANGLE_RTOL: f64 = 1e-9;
-
-/// A negative principal moment smaller than this fraction of the largest
-/// is rounding of the file's values (or of the rotation), not physics.
-const PSD_RTOL: f64 = 1e-6;
 
 /// Below this relative breach a triangle violation is the file's rounding.
 const ROUNDING_BREACH: f64 = 1e-3;
@@ -67,10 +60,13 @@ pub(super) fn judge(i: &[f64; 6]) -> Judgement {
     let Some(p) = principal_moments(i) else {
         return Judgement::Negative(None);
     };
-    if p[0] < -PSD_RTOL * p[2].max(0.0) {
+    // The generator's own rounding allowance: what it accepts without
+    // `nonphysical_inertia` is physical here too.
+    let rounding = INERTIA_ROUNDING * p[2].max(0.0) + INERTIA_FLOOR;
+    if p[0] < -rounding {
         return Judgement::Negative(Some(p));
     }
-    if p[0] + p[1] < p[2] * (1.0 - TRIANGLE_RTOL) {
+    if p[0] + p[1] < p[2] - rounding {
         return Judgement::Triangle(p);
     }
     Judgement::Physical

@@ -249,8 +249,9 @@ fn base_gravity(
     Ok(g.map(|x| if x.abs() < 1e-12 { 0.0 } else { x }))
 }
 
-/// One note per held or dropped branch: its mass, what holds it, and the
-/// largest gravity torque it puts on the chain, so the user can judge.
+/// One note per chain link that holds branches with held joints: their
+/// mass, what holds them, and the largest gravity torque they put on the
+/// chain, so the user can judge; one warning per dropped branch.
 fn branch_reports(
     tree: &Tree<'_>,
     s: &Selection,
@@ -258,41 +259,58 @@ fn branch_reports(
     gravity: Vector3<f64>,
     messages: &mut Messages,
 ) {
+    let mut by_link: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for &b in &s.held {
-        let (mass, torque, joint) = statics::branch_load(tree, s, locks, gravity, b);
-        let holds: Vec<String> = tree
-            .subtree_joints(b)
-            .into_iter()
+        by_link.entry(tree.parent_link(b)).or_default().push(b);
+    }
+    for (link, branches) in by_link {
+        let (mass, torque, joint) = statics::branches_load(tree, s, locks, gravity, &branches);
+        let names: Vec<&str> = branches.iter().map(|&b| tree.joint_name(b)).collect();
+        let holds: Vec<String> = branches
+            .iter()
+            .flat_map(|&b| tree.subtree_joints(b))
             .filter_map(|j| match s.roles.get(&j)? {
                 Role::Locked(v) => Some(format!("'{}' at {v:?}", tree.joint_name(j))),
                 Role::Mimic(m) => Some(format!("'{}' following '{}'", tree.joint_name(j), m.joint)),
                 _ => None,
             })
             .collect();
+        let count = match names.len() {
+            1 => "a branch".to_string(),
+            n => format!("{n} branches"),
+        };
         messages.notes.push(format!(
-            "kept the branch at joint '{}' ({mass:.4} kg{}), its joints held: {}",
-            tree.joint_name(b),
-            load(torque, joint.as_deref()),
+            "kept {count} at link '{}' ({}; {mass:.4} kg{}), joints held: {}",
+            tree.link_name(link),
+            names.join(", "),
+            load(tree, torque, joint),
             holds.join(", ")
         ));
     }
     for &b in &s.dropped {
-        let (mass, torque, joint) = statics::branch_load(tree, s, locks, gravity, b);
+        let (mass, torque, joint) = statics::branches_load(tree, s, locks, gravity, &[b]);
         messages.warnings.push(format!(
             "dropped the branch below the {} joint '{}' ({mass:.4} kg{}): a free body is not part \
              of the arm",
             tree.kind(b).name(),
             tree.joint_name(b),
-            load(torque, joint.as_deref()),
+            load(tree, torque, joint),
         ));
     }
 }
 
-fn load(torque: f64, joint: Option<&str>) -> String {
-    match joint {
-        Some(joint) => format!("; up to {torque:.3} N m of gravity torque on '{joint}'"),
-        None => String::new(),
-    }
+fn load(tree: &Tree<'_>, torque: f64, joint: Option<usize>) -> String {
+    let Some(j) = joint else {
+        return String::new();
+    };
+    let (unit, what) = match tree.kind(j) {
+        parse::Kind::Prismatic => ("N", "force"),
+        _ => ("N m", "torque"),
+    };
+    format!(
+        "; up to {torque:.3} {unit} of gravity {what} on '{}'",
+        tree.joint_name(j)
+    )
 }
 
 /// One line each for what was left out without consequence.

@@ -36,16 +36,23 @@ struct Axis {
     origin: Vector3<f64>,
 }
 
-/// The largest gravity torque of the subtree below `branch` on a moving
-/// joint of the chain: (N m or N, joint name), and the subtree's mass.
-pub(super) fn branch_load(
+/// The mass of the subtrees below `branches` (joints hanging from one
+/// link) and the largest gravity torque (N m, or N on a prismatic joint)
+/// they put on a moving joint of the chain, with that joint.
+pub(super) fn branches_load(
     tree: &Tree<'_>,
     s: &Selection,
     locks: &Locks,
     gravity: Vector3<f64>,
-    branch: usize,
-) -> (f64, f64, Option<String>) {
-    let links = tree.subtree_links(tree.child_link(branch));
+    branches: &[usize],
+) -> (f64, f64, Option<usize>) {
+    let Some(&branch) = branches.first() else {
+        return (0.0, 0.0, None);
+    };
+    let links: Vec<usize> = branches
+        .iter()
+        .flat_map(|&b| tree.subtree_links(tree.child_link(b)))
+        .collect();
     let mass: f64 = links.iter().map(|&l| link_mass(tree, l)).sum();
     let mut rng = ChaCha8Rng::seed_from_u64(22);
     let mut worst = (0.0, None);
@@ -63,7 +70,7 @@ pub(super) fn branch_load(
                 a.axis.dot(&(c - a.origin).cross(&weight))
             };
             if tau.abs() > worst.0 {
-                worst = (tau.abs(), Some(tree.joint_name(a.joint).to_string()));
+                worst = (tau.abs(), Some(a.joint));
             }
         }
     }
