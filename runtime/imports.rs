@@ -18,16 +18,23 @@ pub struct ImportUrdfArgs {
     /// The link fixed to the world (default: the URDF root link).
     #[arg(long)]
     pub base: Option<String>,
-    /// The last link of the chain (default: the end of the only moving branch).
+    /// The last link of the chain (default: where the only moving branch ends
+    /// or splits, as at a hand's fingers, whose joints are then held at 0).
     #[arg(long)]
     pub tip: Option<String>,
-    /// Hold a revolute joint at an angle (rad); it is lumped like a fixed joint.
-    #[arg(long, value_name = "JOINT=ANGLE", value_parser = parse_lock)]
+    /// Hold a joint at a position (rad, or m for a prismatic joint); it is
+    /// lumped like a fixed joint, and joints that mimic it follow.
+    #[arg(long, value_name = "JOINT=POSITION", value_parser = parse_lock)]
     pub lock: Vec<(String, f64)>,
     /// Fix a payload to a link:
     /// `LINK:mass=KG[,com=X;Y;Z][,inertia=IXX;IYY;IZZ[;IXY;IXZ;IYZ]]` (quote it).
     #[arg(long, value_name = "LINK:mass=..,com=..")]
     pub attach: Vec<Attachment>,
+    /// Keep a link's inertia that is not positive semi-definite, on purpose
+    /// (written as `nonphysical_inertia`); triangle-inequality breaches are
+    /// kept without it, with a warning.
+    #[arg(long, value_name = "LINK")]
+    pub nonphysical_inertia: Vec<String>,
     /// The description's `name` (default: the URDF robot name).
     #[arg(long)]
     pub name: Option<String>,
@@ -45,6 +52,7 @@ pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
         tip: args.tip.clone(),
         lock: args.lock.clone(),
         attach: args.attach.clone(),
+        nonphysical_inertia: args.nonphysical_inertia.clone(),
         name: args.name.clone(),
     };
     let label = args.urdf.display().to_string();
@@ -53,12 +61,9 @@ pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
     for warning in &imported.warnings {
         eprintln!("warning: {label}: {warning}");
     }
-    // What this tool writes it must also read: a value the description
-    // refuses (a mass beyond any arm, an impossible inertia) fails here.
-    let written = args.out.clone().unwrap_or_else(|| PathBuf::from("-"));
-    codegen::Description::parse(&imported.toml, "imported", &written).map_err(|e| {
-        anyhow::anyhow!("{label}: the URDF imports to a description this tool refuses: {e}")
-    })?;
+    for note in &imported.notes {
+        eprintln!("note: {label}: {note}");
+    }
     emit(args.out.as_ref(), imported.toml.as_bytes())?;
     if let Some(out) = &args.out {
         eprintln!(
