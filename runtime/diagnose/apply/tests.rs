@@ -14,6 +14,7 @@ fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
             trimmed_samples: 0,
         },
         samples: 0,
+        joint_kinds: vec![],
         residual_rms: vec![],
         residual_share: vec![],
         regimes: vec![],
