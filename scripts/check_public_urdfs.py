@@ -318,7 +318,8 @@ def read_csv(path: Path):
 def moving_joints_of(toml_path: Path):
     import tomllib
     doc = tomllib.loads(toml_path.read_text())
-    return [j["name"] for j in doc.get("joints", []) if j.get("type") != "fixed" and "locked" not in j]
+    return [j["name"] for j in doc.get("joints", [])
+            if j.get("type") != "fixed" and "locked" not in j and "mimic" not in j]
 
 
 def max_relative(got, want):
