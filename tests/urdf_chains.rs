@@ -157,19 +157,16 @@ fn plain_arm() {
 }
 
 #[test]
-#[ignore = "waiting on PSD inertias: zero-inertia sensor and tool frames are refused as not positive definite"]
 fn point_masses_sensor_and_tool_frames() {
     check("point_masses", &point_masses(), "world", "tcp", &[]);
 }
 
 #[test]
-#[ignore = "waiting on PSD inertias: a thin rod (izz = 0, or -1e-19 from rounding) is refused"]
 fn thin_rods_with_rounded_inertia() {
     check("thin_rods", &thin_rods(), "base_link", "link3", &[]);
 }
 
 #[test]
-#[ignore = "waiting on importing a triangle-inequality breach with no edit (refused without nonphysical_inertia)"]
 fn inertia_breaking_the_triangle_inequality() {
     check(
         "triangle_breach",
@@ -181,7 +178,6 @@ fn inertia_breaking_the_triangle_inequality() {
 }
 
 #[test]
-#[ignore = "waiting on prismatic joints on the chain (importer and codegen)"]
 fn prismatic_lift_under_an_arm() {
     check(
         "lift_under_arm",
@@ -193,20 +189,17 @@ fn prismatic_lift_under_an_arm() {
 }
 
 #[test]
-#[ignore = "waiting on held moving branches: the importer drops the prismatic fingers instead of holding them at 0"]
 fn panda_hand_fingers_held_at_zero() {
     check("panda_hand", &panda_hand(), "base_link", "hand_tcp", &[]);
 }
 
 #[test]
-#[ignore = "waiting on locking prismatic joints and mimic followers of a held master"]
 fn panda_hand_fingers_locked_open() {
     let lock = [("finger_joint1", 0.03)];
     check("panda_hand", &panda_hand(), "base_link", "hand_tcp", &lock);
 }
 
 #[test]
-#[ignore = "waiting on held moving branches: --lock of an off-chain master is refused (its branch is dropped)"]
 fn linkage_gripper_locked_master_and_mimic_fingers() {
     let lock = [("finger_joint", 0.5)];
     check(
@@ -219,7 +212,6 @@ fn linkage_gripper_locked_master_and_mimic_fingers() {
 }
 
 #[test]
-#[ignore = "waiting on held moving branches and mimic offsets: the gripper is dropped instead of held"]
 fn linkage_gripper_held_at_zero() {
     check(
         "linkage_gripper",
@@ -243,26 +235,22 @@ fn mimic_joint_on_the_chain() {
 }
 
 #[test]
-#[ignore = "waiting on the importer: urdf-rs refuses a <color> with three numbers"]
 fn colors_textures_transmissions_gazebo_continuous_limits() {
     check("cosmetics", &cosmetics(), "base_link", "link4", &[]);
 }
 
 #[test]
-#[ignore = "waiting on the importer: a floating joint above the base is refused"]
 fn floating_root_above_the_base() {
     check("floating_root", &floating_root(), "world", "link3", &[]);
 }
 
 #[test]
-#[ignore = "waiting on held moving branches: the hand's fingers are dropped instead of held"]
 fn humanoid_arm_cut_at_the_shoulder() {
     let lock = [("waist", 0.3)];
     check("humanoid", &humanoid(), "l_shoulder_mount", "l_hand", &lock);
 }
 
 #[test]
-#[ignore = "waiting on held moving branches: the head, the other arm and the fingers are dropped"]
 fn humanoid_arm_from_the_pelvis_other_branches_held() {
     check("humanoid", &humanoid(), "pelvis", "l_link3", &[]);
 }
@@ -279,14 +267,12 @@ fn gen3_lite_arm() {
 }
 
 #[test]
-#[ignore = "waiting on held moving branches and mimic offsets: the gripper fingers are dropped"]
 fn gen3_lite_ros2_with_mimic_gripper_held() {
     let urdf = gen3_lite("gen3_lite_ros2_kortex.urdf");
     check("gen3_lite_ros2", &urdf, "world", "tool_frame", &[]);
 }
 
 #[test]
-#[ignore = "waiting on held moving branches: --lock of the gripper master is refused"]
 fn gen3_lite_ros2_with_gripper_locked_half_closed() {
     let urdf = gen3_lite("gen3_lite_ros2_kortex.urdf");
     let lock = [("right_finger_bottom_joint", 0.5)];
