@@ -17,4 +17,5 @@ mod readers_fuzz;
 mod springs;
 mod stribeck;
 mod study;
+mod urdf_chains;
 mod util;
