@@ -137,7 +137,7 @@ fn usage_errors_exit_2() {
 /// Kinova's URDF with the options their headers record.
 #[test]
 fn import_urdf_reproduces_the_committed_gen3_lite_models() {
-    let urdf = root().join("../shared/reference/gen3_lite/GEN3-LITE.urdf");
+    let urdf = root().join("data/gen3_lite/GEN3-LITE.urdf");
     let urdf = urdf.to_str().expect("utf-8 path");
     let tool = "END_EFFECTOR:mass=0.2018,com=2e-5;0.0024;0.052328,\
                 inertia=0.000308449;0.000211325;0.000187185;-5e-8;-3.5e-8;-2.9196e-5";

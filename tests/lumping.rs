@@ -2,8 +2,8 @@
 //! thesis's link-3 inertia traced back to the formula it used.
 //!
 //! Literal values are Kinova's GEN3-LITE.urdf (ros_kortex) and the tool of
-//! models/kinova_gen3_lite_3dof_locked.toml; see
-//! shared/reference/gen3_lite/README.md for the analysis.
+//! models/kinova_gen3_lite_3dof_locked.toml; see data/gen3_lite/README.md
+//! for the analysis.
 
 // 1.5708 and 3.1416 are the URDF's own rounded angles: data, kept as written.
 #![allow(clippy::approx_constant)]

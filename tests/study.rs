@@ -3,7 +3,7 @@
 
 use sdnn::study::{self, StudyConfig};
 
-use crate::util::{Dir, root, sdnn, sdnn_json};
+use crate::util::{Dir, reference_data, sdnn, sdnn_json};
 
 fn small() -> StudyConfig {
     StudyConfig {
@@ -321,14 +321,20 @@ fn study_on_a_measured_recording_splits_it_in_time() {
     );
 }
 
-/// The real Panda log (../shared/reference/panda_gaz2019, read in place)
-/// with no preprocessing flags: the jittery log is resampled at its median
-/// rate, and the rigid-body MSE against the torque as logged is within 10%
-/// of the README's independent check (numpy RNEA, 10 Hz Butterworth on the
-/// velocity) on every joint.
+/// The real Panda log (GPL-3.0, not in the repository: read in place from
+/// `SDNN_REFERENCE_DIR`, see `reference_data`; skipped without it) with no
+/// preprocessing flags: the jittery log is resampled at its median rate, and
+/// the rigid-body MSE against the torque as logged is within 10% of the
+/// independent check of docs/results.md (numpy RNEA, 10 Hz Butterworth on
+/// the velocity) on every joint.
 #[test]
 fn the_panda_log_needs_no_flags() {
-    let log = root().join("../shared/reference/panda_gaz2019/Trajectory_1/rbt_log");
+    let Some(log) = reference_data(
+        "panda_gaz2019/Trajectory_1/rbt_log",
+        "study::the_panda_log_needs_no_flags (the real Franka Panda log)",
+    ) else {
+        return;
+    };
     let dir = Dir::new();
     let csv = dir.path().join("panda.csv");
     let channel = |name: &str| log.join(name).to_str().unwrap().to_string();

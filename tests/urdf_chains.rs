@@ -5,8 +5,7 @@
 //! max(|tau|, 1 N m)) on 200 random states.
 //!
 //! Fixtures (`fixtures.rs`) each carry one quirk of real robot files; the
-//! real Kinova Gen3 Lite files come from `data/gen3_lite/` or
-//! `../shared/reference/gen3_lite/`. Tests the product cannot pass yet are
+//! real Kinova Gen3 Lite files come from `data/gen3_lite/`. Tests the product cannot pass yet are
 //! `#[ignore]`d with what they wait on; `cargo test --release --locked
 //! urdf_chains -- --include-ignored` shows where it stands.
 
@@ -102,15 +101,10 @@ fn check(name: &str, urdf: &str, base: &str, tip: &str, lock: &[(&str, f64)]) {
     }
 }
 
-/// A Kinova Gen3 Lite file: vendored in `data/gen3_lite/` or read in place.
+/// A Kinova Gen3 Lite file, vendored in `data/gen3_lite/`.
 fn gen3_lite(file: &str) -> String {
-    let candidates = [
-        root().join("data/gen3_lite").join(file),
-        root().join("../shared/reference/gen3_lite").join(file),
-    ];
-    let found = candidates.iter().find(|p| p.exists());
-    let path: &Path = found.unwrap_or_else(|| panic!("{file} not found in {candidates:?}"));
-    std::fs::read_to_string(path).unwrap()
+    let path = root().join("data/gen3_lite").join(file);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 #[test]

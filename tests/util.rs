@@ -90,3 +90,35 @@ pub fn sdnn_json(args: &[&str]) -> serde_json::Value {
     );
     serde_json::from_slice(&run.stdout).expect("JSON output")
 }
+
+/// Reference data the repository does not carry (the Franka Panda log of
+/// Gaz et al. 2019 is GPL-3.0; see docs/verification.md for where to get
+/// it): `<relative>` under `$SDNN_REFERENCE_DIR` (relative to the crate
+/// root), by default `../shared/reference` beside the repository. Without
+/// `SDNN_REFERENCE_DIR` and without the data, `None`: the caller skips, and
+/// a line on the test run's stderr (past the harness's capture) says what
+/// is skipped and how to get the data. A `SDNN_REFERENCE_DIR` that lacks
+/// the data is an error, so a mistyped path never passes silently.
+pub fn reference_data(relative: &str, skipped: &str) -> Option<PathBuf> {
+    use std::io::Write;
+    let set = std::env::var_os("SDNN_REFERENCE_DIR");
+    let dir = root().join(set.as_deref().unwrap_or("../shared/reference".as_ref()));
+    let path = dir.join(relative);
+    if path.exists() {
+        return Some(path);
+    }
+    assert!(
+        set.is_none(),
+        "SDNN_REFERENCE_DIR={}: no {relative} there (docs/verification.md says how to get it)",
+        dir.display()
+    );
+    // Written to the process's stderr, not through eprintln!, which the test
+    // harness captures and shows only for failing tests.
+    let _ = writeln!(
+        std::io::stderr(),
+        "SKIPPED {skipped}: no {relative} in ../shared/reference beside the \
+         repository; put the data there or set SDNN_REFERENCE_DIR to where it \
+         is (docs/verification.md, \"Reference data\", says how to get it)"
+    );
+    None
+}

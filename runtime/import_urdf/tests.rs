@@ -417,19 +417,18 @@ fn attachment_adds_a_fixed_payload_link() {
     );
 }
 
+/// Kinova's URDF, vendored with its licence in data/gen3_lite/.
+const GEN3_LITE: &str = "data/gen3_lite/GEN3-LITE.urdf";
+
 fn gen3_lite() -> String {
-    let dir = std::env::var("SDNN_REFERENCE_DIR").unwrap_or_else(|_| "../shared/reference".into());
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join(dir)
-        .join("gen3_lite/GEN3-LITE.urdf");
-    std::fs::read_to_string(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (set SDNN_REFERENCE_DIR)", path.display()))
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(GEN3_LITE);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 #[test]
 fn gen3_lite_round_trips_through_the_description_parser() {
     let urdf = gen3_lite();
-    let label = "../shared/reference/gen3_lite/GEN3-LITE.urdf";
+    let label = GEN3_LITE;
     let imported = import_urdf(&urdf, label, &ImportOptions::default()).expect("import");
     assert!(imported.warnings.is_empty(), "{:?}", imported.warnings);
     assert!(imported.toml.starts_with(&format!(
