@@ -12,7 +12,7 @@
 mod fixtures;
 mod reference;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use codegen::Description;
 use codegen::recursive::trace;
