@@ -44,11 +44,10 @@ impl Described {
         let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
         let joint_names: Vec<&'static str> = description
             .chain()
-            .bodies
-            .iter()
+            .free_bodies()
             .map(|b| leak(b.joint.clone()))
             .collect();
-        let names = (1..=n)
+        let names = (1..=model.bodies.len())
             .flat_map(|b| INERTIAL_NAMES.map(|p| format!("{p}{b}")))
             .chain((1..=n).flat_map(|b| EFFECT_NAMES.map(|p| format!("{p}{b}"))))
             .map(leak)
@@ -121,8 +120,7 @@ impl Dynamics for Described {
         Ok(DVector::from_iterator(
             qd.len(),
             self.model
-                .bodies
-                .iter()
+                .free()
                 .zip(qd)
                 .map(|(b, &v)| oracle::effects_torque(&b.effects, v, 0.0)),
         ))

@@ -191,8 +191,7 @@ pub fn joint_levers(model: &dyn Dynamics) -> Vec<f64> {
     match parsed_description(model) {
         Ok(d) => d
             .chain()
-            .bodies
-            .iter()
+            .free_bodies()
             .map(|b| match b.kind {
                 codegen::JointKind::Prismatic => PRISMATIC_LEVER,
                 _ => 1.0,

@@ -37,6 +37,11 @@ pub struct OracleBody {
     /// m, m*c, inertia about the body origin (Pinocchio order).
     pub parameters: [f64; INERTIAL_PARAMETERS],
     pub effects: JointEffects,
+    /// The degree of freedom that moves this body's joint, and its
+    /// multiplier and offset (1 and 0 unless the joint is a mimic).
+    pub driver: (usize, f64, f64),
+    /// Set for a mimic joint: no degree of freedom of its own.
+    pub coupled: bool,
 }
 
 impl Model {
@@ -49,13 +54,16 @@ impl Model {
         let bodies = chain
             .bodies
             .iter()
-            .map(|b| OracleBody {
+            .enumerate()
+            .map(|(k, b)| OracleBody {
                 rotation: b.rotation,
                 translation: b.translation,
                 kind: b.kind,
                 axis: Unit::new_normalize(b.axis),
                 parameters: b.inertial.standard_parameters(),
                 effects: b.effects,
+                driver: chain.driver(k),
+                coupled: b.coupling.is_some(),
             })
             .collect();
         Model {
@@ -65,23 +73,29 @@ impl Model {
         }
     }
 
-    /// Degrees of freedom (dim q).
+    /// Degrees of freedom (dim q): the bodies not coupled to another's.
     pub fn dof(&self) -> usize {
-        self.bodies.len()
+        self.free().count()
+    }
+
+    /// The bodies of the degrees of freedom, base first.
+    pub fn free(&self) -> impl Iterator<Item = &OracleBody> {
+        self.bodies.iter().filter(|b| !b.is_coupled())
     }
 
     /// All parameters in the generated regressor's order: per body the ten
-    /// inertial parameters, then per joint its effects
+    /// inertial parameters, then per degree of freedom its effects
     /// ([`JointEffects::parameters`]).
     pub fn parameters(&self) -> DVector<f64> {
         let inertial = self.bodies.iter().flat_map(|b| b.parameters);
-        let effects = self.bodies.iter().flat_map(|b| b.effects.parameters());
+        let effects = self.free().flat_map(|b| b.effects.parameters());
         DVector::from_iterator(self.parameter_count(), inertial.chain(effects))
     }
 
-    /// 19 per degree of freedom.
+    /// 10 per body and 9 per degree of freedom (19 per degree of freedom
+    /// without mimic joints).
     pub fn parameter_count(&self) -> usize {
-        self.dof() * (INERTIAL_PARAMETERS + EFFECT_PARAMETERS)
+        self.bodies.len() * INERTIAL_PARAMETERS + self.dof() * EFFECT_PARAMETERS
     }
 }
 
@@ -101,7 +115,7 @@ pub fn rnea(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DVector<f64> {
     let params: Vec<[f64; INERTIAL_PARAMETERS]> =
         model.bodies.iter().map(|b| b.parameters).collect();
     let mut tau = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
-    for (i, body) in model.bodies.iter().enumerate() {
+    for (i, body) in model.free().enumerate() {
         tau[i] +=
             effects_torque(&body.effects, qd[i], qdd[i]) + position_torque(&body.effects, q[i]);
     }
@@ -148,7 +162,9 @@ pub fn crba(model: &Model, q: &[f64]) -> DMatrix<f64> {
         unit[j] = 1.0;
         let column = rigid_body_torque(model, &params, Vector3::zeros(), q, &zero, &unit);
         m.set_column(j, &column);
-        m[(j, j)] += model.bodies[j].effects.armature;
+    }
+    for (j, body) in model.free().enumerate() {
+        m[(j, j)] += body.effects.armature;
     }
     m
 }
@@ -159,7 +175,7 @@ pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
     let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
     let zero = vec![0.0; model.dof()];
     let mut g = rigid_body_torque(model, &params, model.gravity, q, &zero, &zero);
-    for (i, body) in model.bodies.iter().enumerate() {
+    for (i, body) in model.free().enumerate() {
         g[i] += position_torque(&body.effects, q[i]);
     }
     g
@@ -175,23 +191,24 @@ pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
 /// Regressor Y(q, qd, qdd) with Y * model.parameters() == rnea(q, qd, qdd)
 /// (dim dof x 19*dof): RNEA with one unit parameter at a time.
 pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f64> {
-    let n = model.dof();
+    let (n, bodies) = (model.dof(), model.bodies.len());
     let mut y = DMatrix::zeros(n, model.parameter_count());
-    for b in 0..n {
+    for b in 0..bodies {
         for k in 0..INERTIAL_PARAMETERS {
-            let mut params = vec![[0.0; INERTIAL_PARAMETERS]; n];
+            let mut params = vec![[0.0; INERTIAL_PARAMETERS]; bodies];
             params[b][k] = 1.0;
             let column = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
             y.set_column(b * INERTIAL_PARAMETERS + k, &column);
         }
-        let base = n * INERTIAL_PARAMETERS + b * EFFECT_PARAMETERS;
+    }
+    for (b, e) in model.free().map(|body| &body.effects).enumerate() {
+        let base = bodies * INERTIAL_PARAMETERS + b * EFFECT_PARAMETERS;
         y[(b, base)] = qdd[b];
         y[(b, base + 1)] = qd[b];
         let sign = coulomb_sign(qd[b]);
         y[(b, base + 2)] = sign;
         y[(b, base + 3)] = 1.0;
         y[(b, base + 4)] = sign * sign;
-        let e = &model.bodies[b].effects;
         y[(b, base + 5)] = q[b] - e.spring_rest;
         y[(b, base + 6)] = stribeck_shape(e, qd[b]);
         let angle = e.ripple_cycles * q[b];
@@ -204,7 +221,7 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f
 /// Kinetic energy 0.5 qd^T M(q) qd of the rigid bodies (no armature).
 pub fn kinetic_energy(model: &Model, q: &[f64], qd: &[f64]) -> f64 {
     let mut m = crba(model, q);
-    for (j, body) in model.bodies.iter().enumerate() {
+    for (j, body) in model.free().enumerate() {
         m[(j, j)] -= body.effects.armature;
     }
     let v = DVector::from_column_slice(qd);
@@ -220,7 +237,7 @@ fn rigid_body_torque(
     qd: &[f64],
     qdd: &[f64],
 ) -> DVector<f64> {
-    let n = model.dof();
+    let n = model.bodies.len();
     let mut rotations = Vec::with_capacity(n);
     let mut forces = Vec::with_capacity(n);
     let mut moments = Vec::with_capacity(n);
@@ -230,24 +247,30 @@ fn rigid_body_torque(
     let mut vd = -gravity;
     for (i, body) in model.bodies.iter().enumerate() {
         let a = body.axis.into_inner();
-        let (r, p) = body.placement(q[i]);
+        let (d, multiplier, offset) = body.driver;
+        let (q, qd, qdd) = (
+            multiplier * q[d] + offset,
+            multiplier * qd[d],
+            multiplier * qdd[d],
+        );
+        let (r, p) = body.placement(q);
         let rt = r.transpose();
         vd = rt * (vd + wd.cross(&p) + w.cross(&w.cross(&p)));
         let w_parent = rt * w;
         wd = rt * wd;
         if body.kind == JointKind::Prismatic {
             w = w_parent;
-            vd += a * qdd[i] + 2.0 * w_parent.cross(&a) * qd[i];
+            vd += a * qdd + 2.0 * w_parent.cross(&a) * qd;
         } else {
-            w = w_parent + a * qd[i];
-            wd += a * qdd[i] + w_parent.cross(&a) * qd[i];
+            w = w_parent + a * qd;
+            wd += a * qdd + w_parent.cross(&a) * qd;
         }
         let (m, h, inertia) = unpack(&params[i]);
         forces.push(m * vd + wd.cross(&h) + w.cross(&w.cross(&h)));
         moments.push(inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd));
         rotations.push((r, p));
     }
-    let mut tau = DVector::zeros(n);
+    let mut tau = DVector::zeros(model.dof());
     for i in (0..n).rev() {
         if i + 1 < n {
             let (r, p) = rotations[i + 1];
@@ -261,12 +284,18 @@ fn rigid_body_torque(
             JointKind::Prismatic => forces[i],
             _ => moments[i],
         };
-        tau[i] = body.axis.dot(&along);
+        let (d, multiplier, _) = body.driver;
+        tau[d] += multiplier * body.axis.dot(&along);
     }
     tau
 }
 
 impl OracleBody {
+    /// Whether the joint follows another one's degree of freedom.
+    pub fn is_coupled(&self) -> bool {
+        self.coupled
+    }
+
     /// The body frame in the previous one at joint position q: rotation
     /// and origin.
     pub fn placement(&self, q: f64) -> (Matrix3<f64>, Vector3<f64>) {

@@ -217,7 +217,6 @@ fn linkage_gripper_held_at_zero() {
 }
 
 #[test]
-#[ignore = "waiting on mimic joints on the chain (one DOF drives both)"]
 fn mimic_joint_on_the_chain() {
     check(
         "mimic_on_chain",

@@ -102,9 +102,9 @@ impl Description {
         &self.chain
     }
 
-    /// Number of moving joints.
+    /// Degrees of freedom: the moving joints that do not follow another.
     pub fn dof(&self) -> usize {
-        self.chain.bodies.len()
+        self.chain.dof()
     }
 
     fn normalize_axes(&mut self) {

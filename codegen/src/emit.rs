@@ -43,6 +43,10 @@ pub enum Input {
     Stribeck(usize),
     RippleSin(usize),
     RippleCos(usize),
+    /// Sine and cosine of a coupled body's angle (0-based body index and
+    /// the degree of freedom it follows): multiplier * q_dof + offset.
+    MimicSin(usize, usize),
+    MimicCos(usize, usize),
 }
 
 impl Input {
@@ -57,6 +61,8 @@ impl Input {
             Input::Stribeck(i) => format_ident!("stribeck{}", i + 1),
             Input::RippleSin(i) => format_ident!("ripple_s{}", i + 1),
             Input::RippleCos(i) => format_ident!("ripple_c{}", i + 1),
+            Input::MimicSin(b, _) => format_ident!("mimic_s{}", b + 1),
+            Input::MimicCos(b, _) => format_ident!("mimic_c{}", b + 1),
         }
     }
 }
@@ -221,6 +227,29 @@ impl Function<'_> {
                 });
                 let cycles = format_ident!("{}", crate::recursive::ripple_cycles(i + 1));
                 lines.push(quote! { let (#s, #c) = sin_cos(#cycles * q[#index]); });
+            }
+        }
+        for &input in used {
+            if let Input::MimicSin(b, d) = input {
+                let cosine = Input::MimicCos(b, d);
+                let (s, c) = (input.ident(), cosine.ident());
+                let c = if has(cosine) {
+                    quote! { #c }
+                } else {
+                    quote! { _ }
+                };
+                let multiplier = format_ident!("JOINT{}_MIMIC_MULTIPLIER", b + 1);
+                let offset = format_ident!("JOINT{}_MIMIC_OFFSET", b + 1);
+                let index = int(d);
+                lines.push(quote! { let (#s, #c) = sin_cos(#multiplier * q[#index] + #offset); });
+            } else if let Input::MimicCos(b, d) = input
+                && !has(Input::MimicSin(b, d))
+            {
+                let c = input.ident();
+                let multiplier = format_ident!("JOINT{}_MIMIC_MULTIPLIER", b + 1);
+                let offset = format_ident!("JOINT{}_MIMIC_OFFSET", b + 1);
+                let index = int(d);
+                lines.push(quote! { let (_, #c) = sin_cos(#multiplier * q[#index] + #offset); });
             }
         }
         lines
@@ -558,9 +587,13 @@ impl Printer<'_> {
 
 fn argument_of(input: Input) -> Argument {
     match input {
-        Input::Sin(_) | Input::Cos(_) | Input::Q(_) | Input::RippleSin(_) | Input::RippleCos(_) => {
-            Argument::Q
-        }
+        Input::Sin(_)
+        | Input::Cos(_)
+        | Input::Q(_)
+        | Input::RippleSin(_)
+        | Input::RippleCos(_)
+        | Input::MimicSin(..)
+        | Input::MimicCos(..) => Argument::Q,
         Input::Qd(_) | Input::Sign(_) | Input::Stribeck(_) => Argument::Qd,
         Input::Qdd(_) => Argument::Qdd,
     }

@@ -13,7 +13,7 @@ use quote::quote;
 
 use crate::crosscheck;
 use crate::description::{Description, JointKind};
-use crate::emit::{Argument, Function, Shape};
+use crate::emit::{Argument, Function, Input, Shape};
 use crate::fingerprint::{FINGERPRINT_PREFIX, fingerprint, generator_version};
 use crate::lagrangian;
 use crate::listing;
@@ -59,14 +59,20 @@ pub fn generate(
     let start = Instant::now();
     let chain = description.chain().clone();
     let traced = recursive::trace(&chain);
-    let checked = chain.bodies.len() <= LAGRANGIAN_MAX_DOF;
+    // Coupled chains are checked by the tests against the numeric
+    // Newton-Euler (the expanded Lagrangian has no coupling).
+    let checked = chain.bodies.len() <= LAGRANGIAN_MAX_DOF && !chain.is_coupled();
     if checked {
         let derived = chain.clone();
         let rigid = crate::session::run(move || lagrangian::derive(&derived))??;
         crosscheck::against_lagrangian(&traced, &rigid, &chain)?;
     }
-    let dof = chain.bodies.len();
-    let inputs = lagrangian::inputs(dof);
+    let dof = chain.dof();
+    let mut inputs = lagrangian::inputs(dof);
+    for b in recursive::coupled_bodies(&chain) {
+        let (d, _, _) = chain.driver(b);
+        inputs.extend([Input::MimicSin(b, d), Input::MimicCos(b, d)]);
+    }
     let mut operations = Vec::new();
     let mut items = Vec::new();
     for spec in functions(&traced, dof) {
@@ -169,6 +175,7 @@ struct Spec {
 }
 
 fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
+    let width = traced.regressor.len() / n;
     const Q: &[Argument] = &[Argument::Q];
     const Q_QD: &[Argument] = &[Argument::Q, Argument::Qd];
     const ALL: &[Argument] = &[Argument::Q, Argument::Qd, Argument::Qdd];
@@ -212,7 +219,7 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
             name: "regressor",
             doc: " Regressor Y(q, qd, qdd) with tau = Y * PARAMETERS (see PARAMETER_NAMES).",
             arguments: ALL,
-            shape: Shape::Matrix(n, crate::schema::PARAMETERS_PER_JOINT * n),
+            shape: Shape::Matrix(n, width),
             roots: traced.regressor.clone(),
         },
     ]

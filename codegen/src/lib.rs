@@ -41,7 +41,7 @@ pub use description::{Description, Inertia, Joint, JointEffects, JointKind, Limi
 pub use error::DescriptionError;
 #[cfg(feature = "symbolic")]
 pub use generate::{Cost, Generated, generate};
-pub use reduce::{Body, Chain, Inertial};
+pub use reduce::{Body, Chain, Coupling, Inertial};
 pub use schema::{EFFECT_CONSTANTS, EFFECT_NAMES, EFFECTS_PER_JOINT, PARAMETERS_PER_JOINT};
 
 /// The generated file of a model, relative to the models directory.

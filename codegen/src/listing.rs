@@ -10,7 +10,7 @@ use quote::{format_ident, quote};
 use crate::description::Description;
 use crate::emit::{Input, Printer, int, literal};
 use crate::recursive::{Definition, Traced};
-use crate::schema::{EFFECT_CONSTANTS, EFFECT_NAMES, PARAMETERS_PER_JOINT};
+use crate::schema::{EFFECT_CONSTANTS, EFFECT_NAMES, EFFECTS_PER_JOINT};
 
 /// Names of the ten inertial parameters of body i, Pinocchio's order (the
 /// `PARAMETER_NAMES` stems).
@@ -25,9 +25,14 @@ const INERTIAL_CONSTANTS: [&str; 10] = [
 /// The constant items, in file order.
 pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -> TokenStream {
     let chain = description.chain();
-    let n = chain.bodies.len();
-    let (dof, count) = (int(n), int(PARAMETERS_PER_JOINT * n));
-    let joints = chain.bodies.iter().map(|b| Literal::string(&b.joint));
+    let (n, dofs) = (chain.bodies.len(), chain.dof_bodies());
+    let (dof, count) = (
+        int(dofs.len()),
+        int(10 * n + EFFECTS_PER_JOINT * dofs.len()),
+    );
+    let joints = dofs
+        .iter()
+        .map(|&b| Literal::string(&chain.bodies[b].joint));
     let groups = traced.groups.iter().map(|group| {
         let doc = format!(" {}", group.doc);
         let items = group
@@ -48,15 +53,19 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
     let derived = derived(traced, inputs);
     let names: Vec<String> = (1..=n)
         .flat_map(|i| INERTIAL_NAMES.map(|p| format!("{p}{i}")))
-        .chain((1..=n).flat_map(|i| EFFECT_NAMES.map(|p| format!("{p}{i}"))))
+        .chain((1..=dofs.len()).flat_map(|d| EFFECT_NAMES.map(|p| format!("{p}{d}"))))
         .collect();
     let values = (1..=n)
         .flat_map(|i| INERTIAL_CONSTANTS.map(|q| format_ident!("LINK{i}_{q}")))
-        .chain((1..=n).flat_map(|i| EFFECT_CONSTANTS.map(|q| format_ident!("JOINT{i}_{q}"))));
+        .chain(
+            dofs.iter()
+                .flat_map(|&b| EFFECT_CONSTANTS.map(|q| format_ident!("JOINT{}_{q}", b + 1))),
+        );
     quote! {
-        /// Number of moving joints.
+        /// Number of moving joints (degrees of freedom).
         pub const DOF: usize = #dof;
-        /// Number of regressor parameters: 10 inertial per link, 9 effects per joint.
+        /// Number of regressor parameters: 10 inertial per link, 9 effects per
+        /// degree of freedom.
         pub const NUM_PARAMETERS: usize = #count;
         /// Names of the moving joints, base first.
         pub const JOINT_NAMES: [&str; #dof] = [#(#joints),*];

@@ -18,6 +18,59 @@ pub struct Chain {
     pub bodies: Vec<Body>,
 }
 
+impl Chain {
+    /// Degrees of freedom: the bodies whose joints move alone (a coupled
+    /// body follows one of them).
+    pub fn dof(&self) -> usize {
+        self.bodies.iter().filter(|b| b.coupling.is_none()).count()
+    }
+
+    /// The body of each degree of freedom, base first.
+    pub fn dof_bodies(&self) -> Vec<usize> {
+        (0..self.bodies.len())
+            .filter(|&b| self.bodies[b].coupling.is_none())
+            .collect()
+    }
+
+    /// The bodies of the degrees of freedom, base first.
+    pub fn free_bodies(&self) -> impl Iterator<Item = &Body> {
+        self.bodies.iter().filter(|b| b.coupling.is_none())
+    }
+
+    /// Whether any joint on the chain follows another.
+    pub fn is_coupled(&self) -> bool {
+        self.bodies.iter().any(|b| b.coupling.is_some())
+    }
+
+    /// Body `b`'s degree of freedom and its position's multiplier and
+    /// offset: q_b = multiplier * q_dof + offset.
+    pub fn driver(&self, b: usize) -> (usize, f64, f64) {
+        match &self.bodies[b].coupling {
+            Some(c) => (c.dof, c.multiplier, c.offset),
+            None => (
+                self.bodies[..b]
+                    .iter()
+                    .filter(|x| x.coupling.is_none())
+                    .count(),
+                1.0,
+                0.0,
+            ),
+        }
+    }
+}
+
+/// A body whose joint follows another joint on the chain (a mimic):
+/// q = multiplier * q_dof + offset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coupling {
+    /// The name of the joint it follows.
+    pub master: String,
+    /// That joint's degree of freedom (0-based).
+    pub dof: usize,
+    pub multiplier: f64,
+    pub offset: f64,
+}
+
 /// A moving body: everything rigidly attached after one moving joint.
 ///
 /// Its frame is the joint frame rotated by q about `axis` (revolute) or
@@ -39,6 +92,8 @@ pub struct Body {
     pub inertial: Inertial,
     pub effects: JointEffects,
     pub limits: Option<Limits>,
+    /// Set when the joint follows another one on the chain.
+    pub coupling: Option<Coupling>,
 }
 
 /// Mass, centre of mass and inertia about the centre of mass, in body axes.
@@ -188,7 +243,8 @@ pub(crate) fn reduce(
             let origin_rotation = placement.rotation * rpy_matrix(&joint.origin.rpy);
             let origin_translation =
                 placement.rotation * Vector3::from(joint.origin.xyz) + placement.translation;
-            let child = if joint.is_free() {
+            let coupling = coupling_of(description, joint);
+            let child = if joint.is_free() || coupling.is_some() {
                 bodies.push(Body {
                     joint: joint.name.clone(),
                     link: joint.child.clone(),
@@ -199,6 +255,7 @@ pub(crate) fn reduce(
                     inertial: Inertial::ZERO,
                     effects: joint.effects,
                     limits: joint.limits,
+                    coupling,
                 });
                 parts.push(Vec::new());
                 parent_body.push(placement.body);
@@ -251,6 +308,19 @@ fn held_motion(
     })
 }
 
+/// A mimic of a joint that moves: coupled to it (its degree of freedom is
+/// found once the chain is ordered).
+fn coupling_of(description: &Tree<'_>, joint: &Joint) -> Option<Coupling> {
+    let mimic = joint.mimic.as_ref()?;
+    let master = description.joints.iter().find(|j| j.name == mimic.joint)?;
+    master.is_free().then(|| Coupling {
+        master: master.name.clone(),
+        dof: 0,
+        multiplier: mimic.multiplier,
+        offset: mimic.offset,
+    })
+}
+
 /// The position of a held joint: its lock, or its master's times the
 /// multiplier plus the offset.
 fn held_position(description: &Tree<'_>, joint: &Joint) -> Result<f64, Located> {
@@ -262,20 +332,7 @@ fn held_position(description: &Tree<'_>, joint: &Joint) -> Result<f64, Located> 
         .iter()
         .find(|j| j.name == mimic.joint)
         .expect("validated mimic master");
-    match master.locked {
-        Some(value) => Ok(mimic.multiplier * value + mimic.offset),
-        None => Err(Located::new(
-            KeyPath::root()
-                .key("joints")
-                .index(joint_index(description, &joint.name))
-                .key("mimic"),
-            format!(
-                "joint `{}` follows `{}`, which moves: joints coupled on the chain are not \
-                 supported; lock `{}` (its mimics follow it)",
-                joint.name, master.name, master.name
-            ),
-        )),
-    }
+    Ok(mimic.multiplier * master.locked.unwrap_or(0.0) + mimic.offset)
 }
 
 fn link_inertial(link: &Link) -> Option<Inertial> {
@@ -324,11 +381,17 @@ fn order_serial(
             [] => break,
             [a, b, ..] => {
                 let j = joint_index(description, &bodies[*b].joint);
+                let advice = match (&bodies[*a].coupling, &bodies[*b].coupling) {
+                    (Some(c), _) | (_, Some(c)) => {
+                        format!("lock `{}` (its mimics follow it)", c.master)
+                    }
+                    _ => "lock or fix one of them".to_string(),
+                };
                 return Err(Located::new(
                     KeyPath::root().key("joints").index(j),
                     format!(
                         "joints `{}` and `{}` both move the same body: only serial chains are supported \
-                         (lock or fix one of them)",
+                         ({advice})",
                         bodies[*a].joint, bodies[*b].joint
                     ),
                 ));
@@ -336,7 +399,18 @@ fn order_serial(
         }
     }
     let mut slots: Vec<Option<Body>> = bodies.into_iter().map(Some).collect();
-    let ordered = order.iter().filter_map(|&b| slots[b].take()).collect();
+    let mut ordered: Vec<Body> = order.iter().filter_map(|&b| slots[b].take()).collect();
+    let dof_of: HashMap<String, usize> = ordered
+        .iter()
+        .filter(|b| b.coupling.is_none())
+        .enumerate()
+        .map(|(d, b)| (b.joint.clone(), d))
+        .collect();
+    for body in &mut ordered {
+        if let Some(c) = &mut body.coupling {
+            c.dof = dof_of[&c.master];
+        }
+    }
     Ok(Chain {
         gravity: Vector3::from(description.gravity),
         bodies: ordered,

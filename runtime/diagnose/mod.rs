@@ -187,8 +187,7 @@ pub struct Effect {
 fn joint_kinds(model: &dyn Dynamics) -> Vec<String> {
     let kinds: Option<Vec<String>> = crate::dynamics::parsed_description(model).ok().map(|d| {
         d.chain()
-            .bodies
-            .iter()
+            .free_bodies()
             .map(|b| match b.kind {
                 codegen::JointKind::Prismatic => "prismatic".to_string(),
                 _ => "revolute".to_string(),
@@ -436,6 +435,17 @@ pub fn diagnose(
     settings: Settings,
 ) -> anyhow::Result<Diagnosis> {
     reject_duplicates(recordings)?;
+    if let Ok(d) = crate::dynamics::parsed_description(model)
+        && let Some(b) = d.chain().bodies.iter().find(|b| b.coupling.is_some())
+    {
+        anyhow::bail!(
+            "model `{}`: joint `{}` follows another on the chain (a mimic); the diagnosis \
+             fits one set of parameters per moving joint and does not handle coupled joints \
+             yet: lock the gripper's joint for the diagnosis",
+            model.name(),
+            b.joint
+        );
+    }
     if model.dof() > MAX_DOF {
         anyhow::bail!(
             "model `{}` has {} moving joints; the diagnosis handles up to {MAX_DOF} (its \

@@ -12,7 +12,7 @@ use super::*;
 /// and the study's acceleration cap.
 pub fn limits(model: &dyn Dynamics, config: &StudyConfig) -> Result<JointLimits> {
     let description = parsed_description(model)?;
-    let bodies = &description.chain().bodies;
+    let bodies: Vec<&codegen::Body> = description.chain().free_bodies().collect();
     let position = bodies
         .iter()
         .map(|b| {
@@ -137,7 +137,8 @@ pub(super) fn record_noisy(
 ) -> Result<crate::sim::simulate::Recording> {
     let reference = WaypointTrajectory::new(waypoints, seed)?;
     let mut sim = SimConfig::default();
-    let bodies = parsed_description(controller)?.chain().bodies.clone();
+    let description = parsed_description(controller)?;
+    let bodies: Vec<&codegen::Body> = description.chain().free_bodies().collect();
     let noise = &mut sim.noise;
     noise.torque_sigma *= noise_scale;
     noise.velocity_sigma *= noise_scale;
@@ -155,7 +156,7 @@ pub(super) fn record_noisy(
 
 /// The description's effort limits, where any joint has one (the drives
 /// saturate there); a joint without one is not limited.
-fn effort_limits(bodies: &[codegen::Body]) -> Option<Vec<f64>> {
+fn effort_limits(bodies: &[&codegen::Body]) -> Option<Vec<f64>> {
     let limits: Vec<Option<f64>> = bodies
         .iter()
         .map(|b| b.limits.and_then(|l| l.effort).filter(|&e| e > 0.0))

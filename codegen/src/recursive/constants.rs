@@ -55,6 +55,8 @@ pub struct JointLeaves {
     pub effects: [NodeId; EFFECTS_PER_JOINT],
     /// The spring's rest angle.
     pub spring_rest: NodeId,
+    /// A coupled joint's multiplier and offset (1 and 0 otherwise).
+    pub coupling: [NodeId; 2],
 }
 
 /// The chain's leaves and the listing the generated file starts with.
@@ -168,6 +170,18 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
     // in the programs.
     named(dag, stribeck_velocity(i), e.stribeck_velocity, false);
     named(dag, ripple_cycles(i), e.ripple_cycles, false);
+    let coupling = match &body.coupling {
+        Some(c) => [
+            named(
+                dag,
+                format!("JOINT{i}_MIMIC_MULTIPLIER"),
+                c.multiplier,
+                false,
+            ),
+            named(dag, format!("JOINT{i}_MIMIC_OFFSET"), c.offset, false),
+        ],
+        None => [dag.constant(1.0), dag.constant(0.0)],
+    };
     let doc = match body.kind {
         JointKind::Prismatic => format!(
             "Joint {i} ({:?}, prismatic): origin in the previous link's axes (m), rotation \
@@ -194,6 +208,7 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         axis,
         effects,
         spring_rest,
+        coupling,
     };
     (Group { doc, items }, leaves)
 }

@@ -62,12 +62,18 @@ pub struct Traced {
     /// viscous qd + coulomb sign(qd) + coulomb_asymmetry |sign(qd)| +
     /// stribeck sign(qd) exp(-(qd/v_s)^2) + offset per joint.
     pub effects: Vec<NodeId>,
-    /// n x 19n: ten inertial columns per body, then nine effect columns per
-    /// joint.
+    /// dof x (10 bodies + 9 dof): ten inertial columns per moving body,
+    /// then nine effect columns per degree of freedom.
     pub regressor: Vec<NodeId>,
 }
 
 /// Traces every function of `chain`.
+///
+/// Everything is traced per moving body, as if each had its own joint; a
+/// body coupled to another joint (a mimic) takes that joint's position
+/// times its multiplier plus its offset, and its rows are projected onto
+/// the degrees of freedom (tau_d = sum over the bodies b it drives of
+/// multiplier_b tau_b, M = G^T M_b G): the coupled system's equations.
 pub fn trace(chain: &Chain) -> Traced {
     let mut dag = Dag::default();
     let leaves = constants::leaves(&mut dag, chain);
@@ -102,30 +108,37 @@ pub fn trace(chain: &Chain) -> Traced {
 
     let motions = t.forward(&rotations, &full, base_acceleration);
     let rigid = t.backward(&rotations, &motions);
-    let tau = (0..n)
-        .map(|i| {
-            let effects = t.effects(i, true);
-            let position = t.position_torque(i);
-            let with_effects = t.dag.sum2(rigid[i], effects);
+    let rigid = t.project(&rigid, 1);
+    let dofs = chain.dof_bodies();
+    let tau = dofs
+        .iter()
+        .zip(rigid)
+        .map(|(&b, rigid)| {
+            let effects = t.effects(b, true);
+            let position = t.position_torque(b);
+            let with_effects = t.dag.sum2(rigid, effects);
             t.dag.sum2(with_effects, position)
         })
         .collect();
     let rest = t.forward(&rotations, &at_rest, base_acceleration);
-    let gravity = t
-        .backward(&rotations, &rest)
-        .into_iter()
-        .enumerate()
-        .map(|(i, g)| {
-            let position = t.position_torque(i);
+    let at_rest = t.backward(&rotations, &rest);
+    let gravity = dofs
+        .iter()
+        .zip(t.project(&at_rest, 1))
+        .map(|(&b, g)| {
+            let position = t.position_torque(b);
             t.dag.sum2(g, position)
         })
         .collect();
     let moving = t.forward(&rotations, &no_acceleration, gravity_off);
     let coriolis = t.backward(&rotations, &moving);
-    let effects = (0..n).map(|i| t.effects(i, false)).collect();
+    let coriolis = t.project(&coriolis, 1);
+    let effects = dofs.iter().map(|&b| t.effects(b, false)).collect();
     let twists = t.twists(&rotations);
     let mass_matrix = t.mass_matrix(&twists);
+    let mass_matrix = t.project_both(&mass_matrix);
     let regressor = t.regressor(&twists, &motions);
+    let regressor = t.project_regressor(&regressor);
     Traced {
         dag: t.dag,
         groups: t.leaves.groups,
@@ -138,6 +151,45 @@ pub fn trace(chain: &Chain) -> Traced {
     }
 }
 
+/// Program inputs of a state of `chain` (q, qd, qdd per degree of
+/// freedom): per degree of freedom the `INPUTS_PER_JOINT` inputs, then per
+/// coupled body the sine and cosine of its angle.
+pub fn program_inputs(chain: &Chain, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+    let dofs = chain.dof_bodies();
+    let mut x: Vec<f64> = dofs
+        .iter()
+        .enumerate()
+        .flat_map(|(d, &b)| {
+            let e = &chain.bodies[b].effects;
+            let (ripple_sin, ripple_cos) = (e.ripple_cycles * q[d]).sin_cos();
+            [
+                q[d].sin(),
+                q[d].cos(),
+                qd[d],
+                qdd[d],
+                crate::schema::sign(qd[d]),
+                q[d],
+                e.stribeck_shape(qd[d]),
+                ripple_sin,
+                ripple_cos,
+            ]
+        })
+        .collect();
+    for b in coupled_bodies(chain) {
+        let (d, multiplier, offset) = chain.driver(b);
+        let (s, c) = (multiplier * q[d] + offset).sin_cos();
+        x.extend([s, c]);
+    }
+    x
+}
+
+/// The coupled bodies, base first.
+pub fn coupled_bodies(chain: &Chain) -> Vec<usize> {
+    (0..chain.bodies.len())
+        .filter(|&b| chain.bodies[b].coupling.is_some())
+        .collect()
+}
+
 struct Tracer<'a> {
     dag: Dag,
     chain: &'a Chain,
@@ -147,8 +199,89 @@ struct Tracer<'a> {
 }
 
 impl Tracer<'_> {
-    fn input(&mut self, joint: usize, which: usize) -> NodeId {
-        self.dag.input(INPUTS_PER_JOINT * joint + which)
+    /// Input `which` of body `b`: its degree of freedom's, or for a
+    /// coupled body its own angle's sine and cosine and the multiplied
+    /// position, velocity and acceleration.
+    fn input(&mut self, b: usize, which: usize) -> NodeId {
+        let (d, _, _) = self.chain.driver(b);
+        let own = self.dag.input(INPUTS_PER_JOINT * d + which);
+        let Some(slot) = coupled_bodies(self.chain).iter().position(|&c| c == b) else {
+            return own;
+        };
+        let dof = self.chain.dof();
+        let [multiplier, offset] = self.joint(b).coupling;
+        match which {
+            SIN | COS => self
+                .dag
+                .input(INPUTS_PER_JOINT * dof + 2 * slot + which - SIN),
+            Q => {
+                let scaled = self.dag.product2(multiplier, own);
+                self.dag.sum2(scaled, offset)
+            }
+            _ => self.dag.product2(multiplier, own),
+        }
+    }
+
+    /// Rows per body projected onto the degrees of freedom, each row
+    /// `width` entries wide: row d = sum over the bodies b it drives of
+    /// multiplier_b row_b.
+    fn project(&mut self, rows: &[NodeId], width: usize) -> Vec<NodeId> {
+        if !self.chain.is_coupled() {
+            return rows.to_vec();
+        }
+        let n = self.chain.dof();
+        let zero = self.dag.constant(0.0);
+        let mut out = vec![zero; n * width];
+        for b in 0..self.chain.bodies.len() {
+            let (d, _, _) = self.chain.driver(b);
+            let scale = match self.chain.bodies[b].coupling {
+                Some(_) => Some(self.joint(b).coupling[0]),
+                None => None,
+            };
+            for k in 0..width {
+                let term = match scale {
+                    Some(m) => self.dag.product2(m, rows[b * width + k]),
+                    None => rows[b * width + k],
+                };
+                out[d * width + k] = self.dag.sum2(out[d * width + k], term);
+            }
+        }
+        out
+    }
+
+    /// G^T M G for a body-by-body matrix M.
+    fn project_both(&mut self, m: &[NodeId]) -> Vec<NodeId> {
+        if !self.chain.is_coupled() {
+            return m.to_vec();
+        }
+        let (nb, n) = (self.chain.bodies.len(), self.chain.dof());
+        let rows = self.project(m, nb);
+        let transposed: Vec<NodeId> = (0..nb * n).map(|k| rows[(k % n) * nb + k / n]).collect();
+        let both = self.project(&transposed, n);
+        (0..n * n).map(|k| both[(k % n) * n + k / n]).collect()
+    }
+
+    /// The regressor's rows projected, its effect columns kept for the
+    /// degrees of freedom (a coupled joint has no effects).
+    fn project_regressor(&mut self, y: &[NodeId]) -> Vec<NodeId> {
+        if !self.chain.is_coupled() {
+            return y.to_vec();
+        }
+        let nb = self.chain.bodies.len();
+        let width = crate::schema::PARAMETERS_PER_JOINT * nb;
+        let rows = self.project(y, width);
+        let dofs = self.chain.dof_bodies();
+        let effects = crate::schema::EFFECTS_PER_JOINT;
+        let columns: Vec<usize> = (0..10 * nb)
+            .chain(
+                dofs.iter()
+                    .flat_map(|&b| (0..effects).map(move |k| 10 * nb + effects * b + k)),
+            )
+            .collect();
+        (0..dofs.len())
+            .flat_map(|d| columns.iter().map(move |&c| (d, c)))
+            .map(|(d, c)| rows[d * width + c])
+            .collect()
     }
 
     fn joint(&self, i: usize) -> &JointLeaves {

@@ -2,7 +2,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::*;
 use crate::description::Description;
-use crate::states::{inputs, uniform};
+use crate::states::uniform;
 use std::path::Path;
 
 const PLANAR: &str = r#"
@@ -45,13 +45,7 @@ fn elbow_effects(q: f64, qd: f64) -> (f64, f64) {
 
 /// The program inputs of a state of `description`'s chain.
 fn inputs_of(description: &Description, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
-    let effects: Vec<_> = description
-        .chain()
-        .bodies
-        .iter()
-        .map(|b| b.effects)
-        .collect();
-    inputs(q, qd, qdd, &effects)
+    program_inputs(description.chain(), q, qd, qdd)
 }
 
 /// The textbook closed form of the planar two-link arm (gravity along -y).
@@ -82,6 +76,14 @@ fn rnea(
 ) -> Vec<f64> {
     type V = Vector3<f64>;
     let n = chain.bodies.len();
+    // Body positions from the degrees of freedom (mimics follow theirs).
+    let driven = |x: &[f64], b: usize, with_offset: bool| {
+        let (d, multiplier, offset) = chain.driver(b);
+        multiplier * x[d] + if with_offset { offset } else { 0.0 }
+    };
+    let q: Vec<f64> = (0..n).map(|b| driven(q, b, true)).collect();
+    let qd: Vec<f64> = (0..n).map(|b| driven(qd, b, false)).collect();
+    let qdd: Vec<f64> = (0..n).map(|b| driven(qdd, b, false)).collect();
     let (mut w, mut wd) = (V::zeros(), V::zeros());
     let mut a = if g { -chain.gravity } else { V::zeros() };
     let mut frames = Vec::new();
@@ -127,7 +129,12 @@ fn rnea(
         let along = if prismatic(i) { force } else { moment };
         tau[i] = chain.bodies[i].axis.dot(&along);
     }
-    tau
+    let mut projected = vec![0.0; chain.dof()];
+    for (b, t) in tau.iter().enumerate() {
+        let (d, multiplier, _) = chain.driver(b);
+        projected[d] += multiplier * t;
+    }
+    projected
 }
 
 fn assert_close(what: &str, got: &[f64], want: &[f64]) {
@@ -147,19 +154,23 @@ fn check_against_reference(model: &str, samples: usize) {
 fn check_description(description: &Description, samples: usize) {
     let chain = description.chain();
     let traced = trace(chain);
-    let n = chain.bodies.len();
+    let (n, bodies) = (chain.dof(), chain.bodies.len());
     let params: Vec<[f64; 10]> = chain
         .bodies
         .iter()
         .map(|b| b.inertial.standard_parameters())
         .collect();
-    let effects: Vec<_> = chain.bodies.iter().map(|b| b.effects).collect();
+    let effects: Vec<_> = chain
+        .dof_bodies()
+        .iter()
+        .map(|&b| chain.bodies[b].effects)
+        .collect();
     let mut state = 7;
     for sample in 0..samples {
         let mut random =
             |scale: f64| -> Vec<f64> { (0..n).map(|_| scale * uniform(&mut state)).collect() };
         let (q, qd, qdd) = (random(std::f64::consts::PI), random(3.0), random(10.0));
-        let x = inputs(&q, &qd, &qdd, &effects);
+        let x = program_inputs(chain, &q, &qd, &qdd);
         let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
         let zeros = vec![0.0; n];
         let mut tau = rnea(chain, &params, &q, &qd, &qdd, true);
@@ -201,11 +212,11 @@ fn check_description(description: &Description, samples: usize) {
         }
         assert_close("mass_matrix", &eval(&traced.mass_matrix), &mass);
         let y = eval(&traced.regressor);
-        for (k, p) in (0..n).flat_map(|k| (0..10).map(move |p| (k, p))) {
-            let mut unit = vec![[0.0; 10]; n];
+        for (k, p) in (0..bodies).flat_map(|k| (0..10).map(move |p| (k, p))) {
+            let mut unit = vec![[0.0; 10]; bodies];
             unit[k][p] = 1.0;
             let column = rnea(chain, &unit, &q, &qd, &qdd, true);
-            let width = crate::schema::PARAMETERS_PER_JOINT * n;
+            let width = 10 * bodies + crate::schema::EFFECTS_PER_JOINT * n;
             let got: Vec<f64> = (0..n).map(|i| y[i * width + 10 * k + p]).collect();
             assert_close("regressor", &got, &column);
         }
@@ -221,6 +232,30 @@ fn panda_matches_the_numeric_reference() {
 fn gen3_lite_matches_the_numeric_reference() {
     check_against_reference("kinova_gen3_lite", 1000);
     check_against_reference("kinova_gen3_lite_3dof", 1000);
+}
+
+/// A gripper-like chain: a prismatic finger slides with the arm's last
+/// joint, and a revolute joint follows the first, with offsets.
+#[test]
+fn coupled_joints_match_the_numeric_reference() {
+    let coupled = SLIDERS
+        .replacen(
+            "    axis = [1.0, 0.0, 0.0]\n    effects = { coulomb = 3.0, coulomb_asymmetry = 1.0, stribeck = 2.0, stribeck_velocity = 0.02, ripple_sin = 0.5, ripple_cos = 0.2, ripple_cycles = 200.0 }",
+            "    axis = [1.0, 0.0, 0.0]\n    mimic = { joint = \"slide4\", multiplier = -0.7, offset = 0.02 }",
+            1,
+        )
+        .replacen(
+            "    axis = [0.0, 1.0, 0.0]\n",
+            "    axis = [0.0, 1.0, 0.0]\n    mimic = { joint = \"slide1\", multiplier = 3.0, offset = 0.4 }\n",
+            1,
+        );
+    assert_eq!(coupled.matches("mimic").count(), 2);
+    let description = Description::parse(&coupled, "coupled", Path::new("c.toml")).unwrap();
+    assert_eq!(
+        (description.dof(), description.chain().bodies.len()),
+        (2, 4)
+    );
+    check_description(&description, 300);
 }
 
 #[test]
