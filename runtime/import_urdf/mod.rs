@@ -265,26 +265,21 @@ fn branch_reports(
     }
     for (link, branches) in by_link {
         let (mass, torque, joint) = statics::branches_load(tree, s, locks, gravity, &branches);
-        let names: Vec<&str> = branches.iter().map(|&b| tree.joint_name(b)).collect();
-        let holds: Vec<String> = branches
+        let at: Vec<&str> = branches.iter().map(|&b| tree.joint_name(b)).collect();
+        let held: Vec<usize> = branches
             .iter()
             .flat_map(|&b| tree.subtree_joints(b))
-            .filter_map(|j| match s.roles.get(&j)? {
-                Role::Locked(v) => Some(format!("'{}' at {v:?}", tree.joint_name(j))),
-                Role::Mimic(m) => Some(format!("'{}' following '{}'", tree.joint_name(j), m.joint)),
-                _ => None,
-            })
             .collect();
-        let count = match names.len() {
+        let count = match at.len() {
             1 => "a branch".to_string(),
             n => format!("{n} branches"),
         };
         messages.notes.push(format!(
             "kept {count} at link '{}' ({}; {mass:.4} kg{}), joints held: {}",
             tree.link_name(link),
-            names.join(", "),
+            names(&at),
             load(tree, torque, joint),
-            holds.join(", ")
+            holds(tree, s, &held)
         ));
     }
     for &b in &s.dropped {
@@ -296,6 +291,35 @@ fn branch_reports(
             tree.joint_name(b),
             load(tree, torque, joint),
         ));
+    }
+}
+
+/// The held joints of a branch: those at 0 and the mimic joints counted
+/// (a hand has dozens), other positions listed.
+fn holds(tree: &Tree<'_>, s: &Selection, joints: &[usize]) -> String {
+    let (mut zero, mut mimics, mut others) = (Vec::new(), 0, Vec::new());
+    for &j in joints {
+        match s.roles.get(&j) {
+            Some(Role::Locked(v)) if *v == 0.0 => zero.push(tree.joint_name(j)),
+            Some(Role::Locked(v)) => others.push(format!("'{}' at {v:?}", tree.joint_name(j))),
+            Some(Role::Mimic(_)) => mimics += 1,
+            _ => {}
+        }
+    }
+    if !zero.is_empty() {
+        others.insert(0, format!("{} at 0 ({})", zero.len(), names(&zero)));
+    }
+    if mimics > 0 {
+        others.push(format!("{mimics} mimic joint(s) following their master"));
+    }
+    others.join(", ")
+}
+
+/// At most four names, then how many more.
+fn names(list: &[&str]) -> String {
+    match list.len() {
+        0..=4 => list.join(", "),
+        n => format!("{}, and {} more", list[..3].join(", "), n - 3),
     }
 }
 
@@ -321,21 +345,23 @@ fn summary_notes(
     messages: &mut Messages,
 ) {
     if !s.base_branches.is_empty() {
-        let names: Vec<&str> = s
+        let at: Vec<&str> = s
             .base_branches
             .iter()
             .map(|&j| tree.joint_name(j))
             .collect();
         messages.notes.push(format!(
             "left out {} branch(es) on the fixed base (at {}): they change no torque of the chain",
-            names.len(),
-            names.join(", ")
+            at.len(),
+            names(&at)
         ));
     }
     if !messages.idle_dynamics.is_empty() {
+        let idle: Vec<&str> = messages.idle_dynamics.iter().map(String::as_str).collect();
         messages.notes.push(format!(
-            "<dynamics> of joints that do not move left out: {}",
-            messages.idle_dynamics.join(", ")
+            "<dynamics> of {} joint(s) that do not move left out: {}",
+            idle.len(),
+            names(&idle)
         ));
     }
     if !skipped.is_empty() {
