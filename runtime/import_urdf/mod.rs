@@ -119,7 +119,8 @@ pub fn import_urdf(
     let tree = Tree::new(&urdf)?;
     let mut messages = Messages::default();
     let locks = Locks::new(&tree, &options.lock)?;
-    let selection = chain::select(&tree, options, &locks, &mut messages.notes)?;
+    let mut selection = chain::select(&tree, options, &locks, &mut messages.notes)?;
+    messages.warnings.append(&mut selection.warnings);
     let gravity = base_gravity(&tree, &selection, &locks, &mut messages)?;
     let (mut links, mut joints) = convert_all(&tree, &selection, &locks, options, &mut messages)?;
     let mut taken: HashSet<String> = urdf
@@ -225,17 +226,14 @@ fn base_gravity(
     messages: &mut Messages,
 ) -> Result<Vector3<f64>, ImportError> {
     let mut rotation = Matrix3::identity();
+    let mut at_zero = Vec::new();
     for &j in &s.above {
         let joint = tree.joint(j);
         let data = joint.data.clone()?;
         rotation *= rpy_matrix(&data.rpy);
         if joint.kind.is_rotary() {
             let angle = locks.get(j).unwrap_or_else(|| {
-                messages.notes.push(format!(
-                    "joint '{}' above the base is taken at 0 rad for the direction of gravity; \
-                     --lock it to choose another angle",
-                    joint.name
-                ));
+                at_zero.push(joint.name.as_str());
                 0.0
             });
             rotation *= Unit::try_new(Vector3::from(data.axis), 1e-12)
@@ -243,6 +241,13 @@ fn base_gravity(
                     Rotation3::from_axis_angle(&axis, angle).into_inner()
                 });
         }
+    }
+    if !at_zero.is_empty() {
+        messages.notes.push(format!(
+            "joint(s) above the base taken at 0 rad for the direction of gravity ({}); --lock \
+             them to choose other angles",
+            names(&at_zero)
+        ));
     }
     let g = rotation.transpose() * Vector3::from(WORLD_GRAVITY);
     // Exact right angles leave ~1e-16 residues; print them as zero.

@@ -451,3 +451,29 @@ fn branches_on_the_fixed_base_are_left_out_without_advice_even_when_malformed() 
     );
     assert!(imported.notes[0].starts_with("the URDF root 'base' holds several moving branches"));
 }
+
+#[test]
+fn a_mimic_of_a_joint_that_does_not_exist_is_ignored_with_a_warning() {
+    let urdf = arm(&[
+        link("jaw", &inertial(0.02, [1e-5, 1e-5, 1e-5])),
+        joint(
+            "jaw_joint",
+            "revolute",
+            "l3",
+            "jaw",
+            &format!("{LIMIT}<mimic joint='nope'/>"),
+        ),
+    ]);
+    let options = ImportOptions {
+        tip: Some("l3".into()),
+        ..ImportOptions::default()
+    };
+    let imported = run(&urdf, &options);
+    assert!(
+        imported.warnings[0]
+            .starts_with("joint 'jaw_joint' <mimic> (line 10): joint='nope' names no joint"),
+        "{:?}",
+        imported.warnings
+    );
+    assert!(imported.toml.contains("locked = 0.0"), "{}", imported.toml);
+}
