@@ -180,23 +180,33 @@ fn import_urdf_reproduces_the_committed_gen3_lite_models() {
 }
 
 #[test]
-fn import_urdf_rejects_a_prismatic_joint_on_the_chain_by_name() {
+fn import_urdf_takes_a_prismatic_joint_and_names_the_line_of_a_bad_value() {
     let dir = Dir::new();
-    let urdf = dir.write(
-        "slider.urdf",
-        r#"<robot name="slider">
+    let slider = r#"<robot name="slider">
              <link name="base"/>
              <link name="carriage"><inertial><mass value="1"/>
-               <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+               <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+               <visual><material name="m"><color rgba="red"/><texture/></material></visual></link>
              <joint name="rail" type="prismatic"><parent link="base"/><child link="carriage"/>
                <axis xyz="1 0 0"/><limit lower="0" upper="1" effort="10" velocity="1"/></joint>
-           </robot>"#,
-    );
+             <transmission name="t"/>
+           </robot>"#;
+    let urdf = dir.write("slider.urdf", slider);
     let output = sdnn(&["import-urdf", urdf.to_str().expect("utf-8 path")]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let toml = String::from_utf8_lossy(&output.stdout);
+    assert!(toml.contains("type = \"prismatic\""), "{toml}");
+    assert!(
+        stderr.contains("note: ") && stderr.contains("skipped 1 <transmission>"),
+        "{stderr}"
+    );
+    let bad = dir.write("bad.urdf", &slider.replace("upper=\"1\"", "upper=\"1.O\""));
+    let output = sdnn(&["import-urdf", bad.to_str().expect("utf-8 path")]);
     assert_eq!(output.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
-        stderr.contains("rail") && stderr.contains("prismatic"),
+        stderr.contains("joint 'rail' <limit> (line 7): upper='1.O'"),
         "{stderr}"
     );
 }

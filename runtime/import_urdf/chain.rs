@@ -48,6 +48,7 @@ pub(super) struct Selection {
     /// Links left out because they hang from the fixed base by joints that
     /// would move.
     pub base_branches: Vec<usize>,
+    pub warnings: Vec<String>,
 }
 
 /// The `--lock` positions by joint index.
@@ -136,6 +137,7 @@ pub(super) fn select(
         held: Vec::new(),
         dropped: Vec::new(),
         base_branches: Vec::new(),
+        warnings: Vec::new(),
     };
     keep(tree, locks, &mut selection)?;
     check_moves(tree, &selection)?;
@@ -210,6 +212,7 @@ fn keep(tree: &Tree<'_>, locks: &Locks, s: &mut Selection) -> Result<(), ImportE
             {
                 s.held.push(j);
             }
+            s.warnings.extend(unknown_master(tree, j));
             s.roles
                 .insert(j, role(tree, locks, j, on_path.contains(&j)));
             kept.push(child);
@@ -223,12 +226,37 @@ fn keep(tree: &Tree<'_>, locks: &Locks, s: &mut Selection) -> Result<(), ImportE
         .filter_map(|&l| tree.parent_joint(l))
         .collect();
     let kept: HashSet<usize> = s.joints.iter().copied().collect();
-    resolve_mimics(tree, locks, &kept, &mut s.roles)
+    resolve_mimics(tree, locks, &kept, &mut s.roles);
+    Ok(())
 }
 
 /// Floating, planar (and spherical): no single degree of freedom.
 pub(super) fn is_free(kind: Kind) -> bool {
     !kind.is_single_dof() && kind != Kind::Fixed
+}
+
+/// A joint's `<mimic>` when it names a joint of the URDF (a mimic of a
+/// joint that does not exist is ignored, with a warning when kept).
+fn mimic<'a>(tree: &Tree<'a>, joint: usize) -> Option<&'a Mimic> {
+    let mimic = tree.joint(joint).mimic.as_ref()?;
+    tree.joint_index
+        .contains_key(mimic.joint.as_str())
+        .then_some(mimic)
+}
+
+fn unknown_master(tree: &Tree<'_>, joint: usize) -> Option<String> {
+    let j = tree.joint(joint);
+    let m = j.mimic.as_ref()?;
+    (mimic(tree, joint).is_none() && j.kind != Kind::Fixed).then(|| {
+        format!(
+            "joint '{}' <mimic> (line {}): joint='{}' names no joint of the URDF; the mimic is \
+             ignored and the joint taken as an ordinary {} joint",
+            j.name,
+            j.line,
+            m.joint,
+            j.kind.name()
+        )
+    })
 }
 
 /// The role of a kept joint before mimic masters are checked.
@@ -238,7 +266,7 @@ fn role(tree: &Tree<'_>, locks: &Locks, joint: usize, on_path: bool) -> Role {
         Role::Fixed
     } else if let Some(value) = locks.get(joint) {
         Role::Locked(value)
-    } else if let Some(mimic) = &j.mimic {
+    } else if let Some(mimic) = mimic(tree, joint) {
         Role::Mimic(mimic.clone())
     } else if on_path {
         Role::Moving
@@ -256,62 +284,45 @@ fn resolve_mimics(
     locks: &Locks,
     kept: &HashSet<usize>,
     roles: &mut BTreeMap<usize, Role>,
-) -> Result<(), ImportError> {
+) {
     let mimics: Vec<usize> = roles
         .iter()
         .filter(|(_, r)| matches!(r, Role::Mimic(_)))
         .map(|(&j, _)| j)
         .collect();
     for j in mimics {
-        let role = match ultimate_master(tree, locks, j)? {
+        let role = match ultimate_master(tree, locks, j) {
             Some((master, mimic)) if kept.contains(&master) => Role::Mimic(mimic),
             _ => Role::Locked(held_position(tree, locks, j, 0)),
         };
         roles.insert(j, role);
     }
-    Ok(())
 }
 
 /// The first joint up the `<mimic>` chain of `joint` that is not a mimic
 /// (or is locked), and the composed coupling to it; None for a cycle or a
 /// master that cannot move.
-fn ultimate_master(
-    tree: &Tree<'_>,
-    locks: &Locks,
-    joint: usize,
-) -> Result<Option<(usize, Mimic)>, ImportError> {
+fn ultimate_master(tree: &Tree<'_>, locks: &Locks, joint: usize) -> Option<(usize, Mimic)> {
     let (mut multiplier, mut offset) = (1.0, 0.0);
     let mut current = joint;
     for _ in 0..16 {
-        let Some(mimic) = tree
-            .joint(current)
-            .mimic
-            .as_ref()
-            .filter(|_| locks.get(current).is_none())
-        else {
+        let Some(m) = mimic(tree, current).filter(|_| locks.get(current).is_none()) else {
             let master = Mimic {
                 joint: tree.joint_name(current).to_string(),
                 multiplier,
                 offset,
             };
-            return Ok(tree
+            return tree
                 .kind(current)
                 .is_single_dof()
-                .then_some((current, master)));
-        };
-        let Some(&next) = tree.joint_index.get(mimic.joint.as_str()) else {
-            let j = tree.joint(current);
-            return Err(ImportError::Invalid {
-                element: format!("joint '{}' <mimic> (line {})", j.name, j.line),
-                message: format!("joint='{}' names no joint of the URDF", mimic.joint),
-            });
+                .then_some((current, master));
         };
         // q_current = m q_next + o, and q_joint = M q_current + O.
-        offset += multiplier * mimic.offset;
-        multiplier *= mimic.multiplier;
-        current = next;
+        offset += multiplier * m.offset;
+        multiplier *= m.multiplier;
+        current = tree.joint_index[m.joint.as_str()];
     }
-    Ok(None)
+    None
 }
 
 /// Where a joint is held when nothing written drives it: its `--lock`
@@ -320,16 +331,16 @@ pub(super) fn held_position(tree: &Tree<'_>, locks: &Locks, joint: usize, depth:
     if let Some(value) = locks.get(joint) {
         return value;
     }
-    let Some(mimic) = &tree.joint(joint).mimic else {
+    let Some(m) = mimic(tree, joint) else {
         return 0.0;
     };
-    // A cycle of mimic joints (invalid URDF) ends at 0 instead of looping.
-    match tree.joint_index.get(mimic.joint.as_str()) {
-        Some(&master) if depth < 16 => {
-            mimic.multiplier * held_position(tree, locks, master, depth + 1) + mimic.offset
-        }
-        _ => mimic.offset,
-    }
+    // A cycle of mimic joints (invalid URDF) ends instead of looping.
+    let master = tree.joint_index[m.joint.as_str()];
+    let master_position = match depth {
+        0..16 => held_position(tree, locks, master, depth + 1),
+        _ => 0.0,
+    };
+    m.multiplier * master_position + m.offset
 }
 
 fn check_moves(tree: &Tree<'_>, s: &Selection) -> Result<(), ImportError> {

@@ -119,7 +119,8 @@ pub fn import_urdf(
     let tree = Tree::new(&urdf)?;
     let mut messages = Messages::default();
     let locks = Locks::new(&tree, &options.lock)?;
-    let selection = chain::select(&tree, options, &locks, &mut messages.notes)?;
+    let mut selection = chain::select(&tree, options, &locks, &mut messages.notes)?;
+    messages.warnings.append(&mut selection.warnings);
     let gravity = base_gravity(&tree, &selection, &locks, &mut messages)?;
     let (mut links, mut joints) = convert_all(&tree, &selection, &locks, options, &mut messages)?;
     let mut taken: HashSet<String> = urdf
@@ -225,17 +226,14 @@ fn base_gravity(
     messages: &mut Messages,
 ) -> Result<Vector3<f64>, ImportError> {
     let mut rotation = Matrix3::identity();
+    let mut at_zero = Vec::new();
     for &j in &s.above {
         let joint = tree.joint(j);
         let data = joint.data.clone()?;
         rotation *= rpy_matrix(&data.rpy);
         if joint.kind.is_rotary() {
             let angle = locks.get(j).unwrap_or_else(|| {
-                messages.notes.push(format!(
-                    "joint '{}' above the base is taken at 0 rad for the direction of gravity; \
-                     --lock it to choose another angle",
-                    joint.name
-                ));
+                at_zero.push(joint.name.as_str());
                 0.0
             });
             rotation *= Unit::try_new(Vector3::from(data.axis), 1e-12)
@@ -243,6 +241,13 @@ fn base_gravity(
                     Rotation3::from_axis_angle(&axis, angle).into_inner()
                 });
         }
+    }
+    if !at_zero.is_empty() {
+        messages.notes.push(format!(
+            "joint(s) above the base taken at 0 rad for the direction of gravity ({}); --lock \
+             them to choose other angles",
+            names(&at_zero)
+        ));
     }
     let g = rotation.transpose() * Vector3::from(WORLD_GRAVITY);
     // Exact right angles leave ~1e-16 residues; print them as zero.
@@ -265,26 +270,21 @@ fn branch_reports(
     }
     for (link, branches) in by_link {
         let (mass, torque, joint) = statics::branches_load(tree, s, locks, gravity, &branches);
-        let names: Vec<&str> = branches.iter().map(|&b| tree.joint_name(b)).collect();
-        let holds: Vec<String> = branches
+        let at: Vec<&str> = branches.iter().map(|&b| tree.joint_name(b)).collect();
+        let held: Vec<usize> = branches
             .iter()
             .flat_map(|&b| tree.subtree_joints(b))
-            .filter_map(|j| match s.roles.get(&j)? {
-                Role::Locked(v) => Some(format!("'{}' at {v:?}", tree.joint_name(j))),
-                Role::Mimic(m) => Some(format!("'{}' following '{}'", tree.joint_name(j), m.joint)),
-                _ => None,
-            })
             .collect();
-        let count = match names.len() {
+        let count = match at.len() {
             1 => "a branch".to_string(),
             n => format!("{n} branches"),
         };
         messages.notes.push(format!(
             "kept {count} at link '{}' ({}; {mass:.4} kg{}), joints held: {}",
             tree.link_name(link),
-            names.join(", "),
+            names(&at),
             load(tree, torque, joint),
-            holds.join(", ")
+            holds(tree, s, &held)
         ));
     }
     for &b in &s.dropped {
@@ -296,6 +296,35 @@ fn branch_reports(
             tree.joint_name(b),
             load(tree, torque, joint),
         ));
+    }
+}
+
+/// The held joints of a branch: those at 0 and the mimic joints counted
+/// (a hand has dozens), other positions listed.
+fn holds(tree: &Tree<'_>, s: &Selection, joints: &[usize]) -> String {
+    let (mut zero, mut mimics, mut others) = (Vec::new(), 0, Vec::new());
+    for &j in joints {
+        match s.roles.get(&j) {
+            Some(Role::Locked(v)) if *v == 0.0 => zero.push(tree.joint_name(j)),
+            Some(Role::Locked(v)) => others.push(format!("'{}' at {v:?}", tree.joint_name(j))),
+            Some(Role::Mimic(_)) => mimics += 1,
+            _ => {}
+        }
+    }
+    if !zero.is_empty() {
+        others.insert(0, format!("{} at 0 ({})", zero.len(), names(&zero)));
+    }
+    if mimics > 0 {
+        others.push(format!("{mimics} mimic joint(s) following their master"));
+    }
+    others.join(", ")
+}
+
+/// At most four names, then how many more.
+fn names(list: &[&str]) -> String {
+    match list.len() {
+        0..=4 => list.join(", "),
+        n => format!("{}, and {} more", list[..3].join(", "), n - 3),
     }
 }
 
@@ -321,21 +350,23 @@ fn summary_notes(
     messages: &mut Messages,
 ) {
     if !s.base_branches.is_empty() {
-        let names: Vec<&str> = s
+        let at: Vec<&str> = s
             .base_branches
             .iter()
             .map(|&j| tree.joint_name(j))
             .collect();
         messages.notes.push(format!(
             "left out {} branch(es) on the fixed base (at {}): they change no torque of the chain",
-            names.len(),
-            names.join(", ")
+            at.len(),
+            names(&at)
         ));
     }
     if !messages.idle_dynamics.is_empty() {
+        let idle: Vec<&str> = messages.idle_dynamics.iter().map(String::as_str).collect();
         messages.notes.push(format!(
-            "<dynamics> of joints that do not move left out: {}",
-            messages.idle_dynamics.join(", ")
+            "<dynamics> of {} joint(s) that do not move left out: {}",
+            idle.len(),
+            names(&idle)
         ));
     }
     if !skipped.is_empty() {

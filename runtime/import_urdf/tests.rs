@@ -312,7 +312,7 @@ fn dynamics_become_effects_and_are_dropped_when_locked() {
         imported
             .notes
             .iter()
-            .any(|n| n == "<dynamics> of joints that do not move left out: J2"),
+            .any(|n| n == "<dynamics> of 1 joint(s) that do not move left out: J2"),
         "{:?}",
         imported.notes
     );

@@ -270,7 +270,7 @@ fn a_hand_with_prismatic_fingers_is_kept_held_and_reported() {
         "{report}"
     );
     assert!(
-        report.contains("'finger_1' at 0.0, 'finger_2' following 'finger_1'"),
+        report.ends_with("joints held: 1 at 0 (finger_1), 1 mimic joint(s) following their master"),
         "{report}"
     );
     let q = [("J1", 0.4), ("J2", 1.2), ("J3", -0.8)];
@@ -450,4 +450,30 @@ fn branches_on_the_fixed_base_are_left_out_without_advice_even_when_malformed() 
         ]
     );
     assert!(imported.notes[0].starts_with("the URDF root 'base' holds several moving branches"));
+}
+
+#[test]
+fn a_mimic_of_a_joint_that_does_not_exist_is_ignored_with_a_warning() {
+    let urdf = arm(&[
+        link("jaw", &inertial(0.02, [1e-5, 1e-5, 1e-5])),
+        joint(
+            "jaw_joint",
+            "revolute",
+            "l3",
+            "jaw",
+            &format!("{LIMIT}<mimic joint='nope'/>"),
+        ),
+    ]);
+    let options = ImportOptions {
+        tip: Some("l3".into()),
+        ..ImportOptions::default()
+    };
+    let imported = run(&urdf, &options);
+    assert!(
+        imported.warnings[0]
+            .starts_with("joint 'jaw_joint' <mimic> (line 10): joint='nope' names no joint"),
+        "{:?}",
+        imported.warnings
+    );
+    assert!(imported.toml.contains("locked = 0.0"), "{}", imported.toml);
 }
