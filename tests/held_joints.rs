@@ -1,7 +1,7 @@
 //! Held joints of every type: a locked prismatic or revolute joint, and a
 //! mimic of a locked joint, lump exactly like a fixed joint at the held
-//! position (oracle torques equal to rounding), and a mimic of a moving
-//! joint is refused with both names.
+//! position (oracle torques equal to rounding); a mimic of a moving joint
+//! at the tip is coupled to it, and mimics that branch are refused.
 
 use std::path::Path;
 
@@ -171,8 +171,27 @@ fn a_revolute_mimic_follows_its_locked_master() {
     assert_same_torques(&model(&held), &model(&fixed));
 }
 
+/// Two fingers following the elbow both hang from the hand: the chain
+/// branches, refused with the advice to lock their master.
 #[test]
-fn a_mimic_of_a_moving_joint_names_both() {
+fn mimics_of_a_moving_joint_off_the_chain_are_refused_with_their_master() {
+    let mimic = "mimic = { joint = \"elbow\" }";
+    let source = arm_with_hand(
+        &(finger("left", "prismatic", [0.0; 3], [0.0, 1.0, 0.0], mimic)
+            + &finger("right", "revolute", [0.0; 3], [1.0, 0.0, 0.0], mimic)),
+    );
+    let error = Description::parse(&source, "hand", Path::new("hand.toml"))
+        .unwrap_err()
+        .to_string();
+    for part in ["`left`", "`right`", "lock `elbow`"] {
+        assert!(error.contains(part), "{error}");
+    }
+}
+
+/// A mimic at the end of the chain is a coupling: no degree of freedom of
+/// its own, and its torque lands on its master's.
+#[test]
+fn a_mimic_at_the_tip_is_coupled_to_its_master() {
     let source = arm_with_hand(
         &(finger(
             "left",
@@ -185,15 +204,20 @@ fn a_mimic_of_a_moving_joint_names_both() {
             "revolute",
             [0.0; 3],
             [1.0, 0.0, 0.0],
-            "mimic = { joint = \"elbow\" }",
+            "mimic = { joint = \"elbow\", multiplier = 2.0 }",
         )),
     );
-    let error = Description::parse(&source, "hand", Path::new("hand.toml"))
-        .unwrap_err()
-        .to_string();
-    for part in ["`right`", "`elbow`", "lock"] {
-        assert!(error.contains(part), "{error}");
-    }
+    let description = Description::parse(&source, "hand", Path::new("hand.toml")).unwrap();
+    assert_eq!(
+        (description.dof(), description.chain().bodies.len()),
+        (2, 3)
+    );
+    // A light coupled finger changes the elbow's torque only a little, and
+    // the coupled torque is the projection (checked against an independent
+    // whole-tree computation in urdf_chains::mimic_joint_on_the_chain).
+    let model = Model::from_description(&description);
+    let tau = rnea(&model, &[0.3, -0.5], &[0.0; 2], &[0.0; 2]);
+    assert_eq!(tau.len(), 2);
 }
 
 #[test]

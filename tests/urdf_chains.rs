@@ -15,7 +15,7 @@ mod reference;
 use std::path::PathBuf;
 
 use codegen::Description;
-use codegen::recursive::trace;
+use codegen::recursive::{program_inputs, trace};
 use sdnn::import_urdf::{ImportOptions, import_urdf};
 use sdnn::oracle;
 
@@ -25,31 +25,6 @@ use reference::Reference;
 
 const SAMPLES: usize = 200;
 const TOLERANCE: f64 = 1e-10;
-
-/// Program inputs of the traced functions, per joint: sin, cos, qd, qdd,
-/// sign(qd), q, Stribeck shape, ripple sine and cosine
-/// (`codegen::recursive::INPUTS_PER_JOINT`).
-fn inputs(q: &[f64], qd: &[f64], qdd: &[f64], effects: &[codegen::JointEffects]) -> Vec<f64> {
-    let x: Vec<f64> = (0..q.len())
-        .flat_map(|i| {
-            let e = &effects[i];
-            let (ripple_sin, ripple_cos) = (e.ripple_cycles * q[i]).sin_cos();
-            [
-                q[i].sin(),
-                q[i].cos(),
-                qd[i],
-                qdd[i],
-                oracle::coulomb_sign(qd[i]),
-                q[i],
-                e.stribeck_shape(qd[i]),
-                ripple_sin,
-                ripple_cos,
-            ]
-        })
-        .collect();
-    assert_eq!(x.len(), q.len() * codegen::recursive::INPUTS_PER_JOINT);
-    x
-}
 
 /// Imports `urdf` cut at `base` and `tip` with `lock`, and compares the
 /// oracle's and the traced program's torques with the reference's.
@@ -71,11 +46,10 @@ fn check(name: &str, urdf: &str, base: &str, tip: &str, lock: &[(&str, f64)]) {
         )
     });
     let chain = description.chain();
-    let joints: Vec<&str> = chain.bodies.iter().map(|b| b.joint.as_str()).collect();
+    let joints: Vec<&str> = chain.free_bodies().map(|b| b.joint.as_str()).collect();
     assert_eq!(joints, reference.dofs, "{name}: degrees of freedom");
     let model = oracle::Model::from_description(&description);
     let traced = trace(chain);
-    let effects: Vec<_> = chain.bodies.iter().map(|b| b.effects).collect();
     let mut states = States::new(joints.len(), 22);
     for _ in 0..SAMPLES {
         let (q, qd, qdd) = states.next();
@@ -84,7 +58,7 @@ fn check(name: &str, urdf: &str, base: &str, tip: &str, lock: &[(&str, f64)]) {
         let numeric = oracle::rnea(&model, &q, &qd, &qdd);
         let generated = traced
             .dag
-            .evaluate(&traced.tau, &inputs(&q, &qd, &qdd, &effects));
+            .evaluate(&traced.tau, &program_inputs(chain, &q, &qd, &qdd));
         for (path, got) in [("numeric", numeric.as_slice()), ("generated", &generated)] {
             let error = got
                 .iter()
