@@ -339,14 +339,26 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
         Format::Text => {
             println!("model {name}: {} samples", m.nrows());
             println!("{}", pipeline.summary());
+            let levers = crate::dynamics::joint_levers(model);
+            let unit = |j: usize| match levers.get(j) {
+                Some(&l) if l != 1.0 => "N^2",
+                _ => "N m^2",
+            };
             for (j, v) in mse.iter().enumerate() {
                 println!(
-                    "  joint {}: MSE {v:.6} N m^2 (against the torque as logged: {:.6})",
+                    "  joint {}: MSE {v:.6} {} (against the torque as logged: {:.6})",
                     j + 1,
+                    unit(j),
                     mse_as_logged[j]
                 );
             }
-            println!("  mean:    MSE {mean:.6} N m^2");
+            let mixed = (0..mse.len()).any(|j| unit(j) != unit(0));
+            let mean_unit = if mixed {
+                "(N m^2 and N^2 mixed)"
+            } else {
+                unit(0)
+            };
+            println!("  mean:    MSE {mean:.6} {mean_unit}");
         }
     }
     Ok(())

@@ -325,7 +325,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         let nuisance = search::Nuisance::new(data, j, &linear);
         let at_rest = rest.get(j).copied().unwrap_or(0.0);
         if let Some((k, velocity, searched)) =
-            search::stribeck_velocity(&nuisance, at_rest, &stribeck)
+            search::stribeck_velocity(&nuisance, at_rest, data.levers[j], &stribeck)
         {
             let (fitted, applied) = &stribeck[k];
             list.push(Candidate {

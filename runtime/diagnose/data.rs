@@ -24,6 +24,9 @@ pub(crate) struct Stacked {
     pub(super) generic: Vec<DVector<f64>>,
     pub(super) group: Vec<usize>,
     pub(super) dof: usize,
+    /// Per joint the lever its speeds are scaled by (1 revolute,
+    /// `dynamics::PRISMATIC_LEVER` prismatic): the Stribeck grid's.
+    pub(super) levers: Vec<f64>,
 }
 
 impl Stacked {
@@ -222,10 +225,8 @@ pub(super) fn stack(
         Vec::new()
     };
     let tilted = tilted_models(model);
-    let moving: Vec<f64> = crate::dynamics::joint_levers(model)
-        .iter()
-        .map(|lever| MOVING * lever)
-        .collect();
+    let levers = crate::dynamics::joint_levers(model);
+    let moving: Vec<f64> = levers.iter().map(|lever| MOVING * lever).collect();
     let mut kept = Vec::new();
     let mut durations = Vec::new();
     let mut at_rest = vec![0.0_f64; n];
@@ -250,7 +251,7 @@ pub(super) fn stack(
                 for (largest, r) in at_rest.iter_mut().zip(&rest) {
                     *largest = largest.max(*r);
                 }
-                let mut rows = rows(model, models(&tilted), &traj, &rest, &velocities)?;
+                let mut rows = rows(model, models(&tilted), &traj, &rest, &velocities, &levers)?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -264,7 +265,7 @@ pub(super) fn stack(
                     *largest = largest.max(*r);
                 }
                 (
-                    rows(model, models(&tilted), &traj, &rest, &velocities)?,
+                    rows(model, models(&tilted), &traj, &rest, &velocities, &levers)?,
                     (0..traj.len()).collect(),
                     dt,
                 )
@@ -327,6 +328,7 @@ pub(super) fn stack(
         generic: all.generic.into_iter().map(DVector::from_vec).collect(),
         group,
         dof: n,
+        levers,
     };
     let columns = Columns {
         own: all.own.map(DVector::from_vec),
@@ -371,6 +373,7 @@ fn rows(
     traj: &Trajectory,
     rest: &[f64],
     velocities: &[f64],
+    levers: &[f64],
 ) -> anyhow::Result<Rows> {
     let n = model.dof();
     let predicted = model_torques(model, traj)?;
@@ -411,7 +414,7 @@ fn rows(
             rows.measured_rate.push(measured_rate[(s, i)]);
             let (fitted, applied) = rows.stribeck.split_at_mut(velocities.len());
             for ((fitted, applied), v) in fitted.iter_mut().zip(applied).zip(velocities) {
-                let fading = (-(qd[i] / v).powi(2)).exp();
+                let fading = (-(qd[i] / (v * levers[i])).powi(2)).exp();
                 fitted.push(sign * fading);
                 applied.push(coulomb_sign(qd[i]) * fading);
             }

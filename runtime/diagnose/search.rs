@@ -115,13 +115,15 @@ fn orthonormal_basis(x: DMatrix<f64>) -> DMatrix<f64> {
 /// among the grid's velocities of at least [`RESOLVED_REST_MULTIPLE`] times
 /// the joint's at-rest speed `rest` (slower ones are not resolved), the one
 /// whose fitted column leaves the least residual once `nuisance` is
-/// projected out. `None` when no velocity of the grid is resolved.
+/// projected out. `None` when no velocity of the grid is resolved. The
+/// grid is scaled by the joint's `lever` (m/rad on a prismatic joint).
 pub(super) fn stribeck_velocity(
     nuisance: &Nuisance,
     rest: f64,
+    lever: f64,
     columns: &[(DVector<f64>, DVector<f64>)],
 ) -> Option<(usize, f64, usize)> {
-    let velocities = stribeck_velocities();
+    let velocities: Vec<f64> = stribeck_velocities().iter().map(|v| v * lever).collect();
     if columns.len() != velocities.len() {
         return None; // Stribeck friction does not compete
     }
@@ -191,6 +193,7 @@ pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVec
         generic: Vec::new(),
         group: (0..samples).map(|s| s * 4 / samples).collect(),
         dof: 1,
+        levers: vec![1.0],
     };
     (data, q, qd)
 }
@@ -228,7 +231,7 @@ mod tests {
         let sign = qd.map(f64::signum);
         let ones = DVector::from_element(qd.len(), 1.0);
         let nuisance = Nuisance::new(&data, 0, &[&qd, &sign, &ones]);
-        let (_, velocity, _) = stribeck_velocity(&nuisance, 0.02, &columns).unwrap();
+        let (_, velocity, _) = stribeck_velocity(&nuisance, 0.02, 1.0, &columns).unwrap();
         assert!((velocity / 0.1 - 1.0).abs() < 0.2, "{velocity}");
     }
 }
