@@ -7,8 +7,9 @@
 use crate::lagrangian::RigidBodyTorque;
 use crate::program::NodeId;
 use crate::recursive::Traced;
+use crate::recursive::program_inputs;
 use crate::reduce::Chain;
-use crate::states::{inputs, uniform};
+use crate::states::uniform;
 
 /// States compared; each is a full evaluation of both forms.
 const STATES: usize = 24;
@@ -33,7 +34,7 @@ pub fn against_lagrangian(
         let mut draw =
             |scale: f64| -> Vec<f64> { (0..n).map(|_| scale * uniform(&mut seed)).collect() };
         let (q, qd, qdd) = (draw(std::f64::consts::PI), draw(2.0), draw(5.0));
-        let x = inputs(&q, &qd, &qdd, &effects);
+        let x = program_inputs(chain, &q, &qd, &qdd);
         let eval = |roots: &[NodeId]| traced.dag.evaluate(roots, &x);
         let y = eval(&traced.regressor);
         let tau = eval(&traced.tau);

@@ -234,10 +234,10 @@ impl Tracer<'_> {
         let mut out = vec![zero; n * width];
         for b in 0..self.chain.bodies.len() {
             let (d, _, _) = self.chain.driver(b);
-            let scale = match self.chain.bodies[b].coupling {
-                Some(_) => Some(self.joint(b).coupling[0]),
-                None => None,
-            };
+            let scale = self.chain.bodies[b]
+                .coupling
+                .as_ref()
+                .map(|_| self.joint(b).coupling[0]);
             for k in 0..width {
                 let term = match scale {
                     Some(m) => self.dag.product2(m, rows[b * width + k]),
