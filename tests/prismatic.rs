@@ -85,5 +85,26 @@ fn viscous_friction_and_a_force_offset_on_a_prismatic_axis_are_named() {
     for unit in [" N s/m (95% CI", " N (95% CI"] {
         assert!(text.contains(unit), "{unit}:\n{text}");
     }
+    // --apply writes both into the axis's effects, and the gap shrinks.
+    let mse = |model: &std::path::Path| -> f64 {
+        let mut args = vec!["evaluate", "--model", model.to_str().unwrap(), "--data"];
+        args.extend(data.iter().map(String::as_str));
+        args.extend(["--format", "json"]);
+        sdnn_json(&args)["mse"][0].as_f64().unwrap()
+    };
+    let before = mse(&model);
+    let mut apply = vec!["diagnose", "--model", model.to_str().unwrap(), "--apply"];
+    apply.push("--data");
+    apply.extend(data.iter().map(String::as_str));
+    let run = sdnn(&apply);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let applied = std::fs::read_to_string(&model).unwrap();
+    assert!(applied.contains("offset = "), "{applied}");
+    let after = mse(&model);
+    assert!(after < 0.3 * before, "joint 1 MSE {before} -> {after}");
     assert!(!text.contains("N m s/rad"), "{text}");
 }
