@@ -246,6 +246,23 @@ fn gen3_lite_ros2_with_gripper_locked_half_closed() {
     check("gen3_lite_ros2", &urdf, "base_link", "tool_frame", &lock);
 }
 
+/// The whole arm down to the right finger's tip: the tip joint is Kinova's
+/// `<mimic>` of the bottom joint, a coupling on the chain; the left finger
+/// follows the same joint off the chain, which makes the moving bodies a
+/// tree. Refused today with the advice to lock the finger joint.
+#[test]
+#[ignore = "waiting on trees of coupled bodies (a mimic off the chain that follows a chain joint)"]
+fn gen3_lite_ros2_arm_to_a_coupled_fingertip() {
+    let urdf = gen3_lite("gen3_lite_ros2_kortex.urdf");
+    check(
+        "gen3_lite_finger",
+        &urdf,
+        "world",
+        "right_finger_dist_link",
+        &[],
+    );
+}
+
 #[test]
 fn gen3_lite_gripper_finger() {
     let urdf = gen3_lite("GEN3-LITE-GRIPPER_URDF_SIMPLIFIED_V2.urdf");
