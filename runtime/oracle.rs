@@ -42,6 +42,8 @@ pub struct OracleBody {
     pub driver: (usize, f64, f64),
     /// Set for a mimic joint: no degree of freedom of its own.
     pub coupled: bool,
+    /// The moving body it hangs from (smaller index); `None` for the base.
+    pub parent: Option<usize>,
 }
 
 impl Model {
@@ -64,6 +66,7 @@ impl Model {
                 effects: b.effects,
                 driver: chain.driver(k),
                 coupled: b.coupling.is_some(),
+                parent: b.parent,
             })
             .collect();
         Model {
@@ -242,10 +245,10 @@ fn rigid_body_torque(
     let mut forces = Vec::with_capacity(n);
     let mut moments = Vec::with_capacity(n);
     // Base: at rest, accelerating upwards to emulate gravity.
-    let mut w = Vector3::zeros();
-    let mut wd = Vector3::zeros();
-    let mut vd = -gravity;
+    let base = (Vector3::zeros(), Vector3::zeros(), -gravity);
+    let mut motions: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)> = Vec::with_capacity(n);
     for (i, body) in model.bodies.iter().enumerate() {
+        let (mut w, mut wd, mut vd) = body.parent.map_or(base, |p| motions[p]);
         let a = body.axis.into_inner();
         let (d, multiplier, offset) = body.driver;
         let (q, qd, qdd) = (
@@ -269,17 +272,18 @@ fn rigid_body_torque(
         forces.push(m * vd + wd.cross(&h) + w.cross(&w.cross(&h)));
         moments.push(inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd));
         rotations.push((r, p));
+        motions.push((w, wd, vd));
     }
     let mut tau = DVector::zeros(model.dof());
     for i in (0..n).rev() {
-        if i + 1 < n {
-            let (r, p) = rotations[i + 1];
-            let child_force = r * forces[i + 1];
-            let child_moment = r * moments[i + 1] + p.cross(&child_force);
-            forces[i] += child_force;
-            moments[i] += child_moment;
-        }
         let body = &model.bodies[i];
+        if let Some(parent) = body.parent {
+            let (r, p) = rotations[i];
+            let force = r * forces[i];
+            let moment = r * moments[i] + p.cross(&force);
+            forces[parent] += force;
+            moments[parent] += moment;
+        }
         let along = match body.kind {
             JointKind::Prismatic => forces[i],
             _ => moments[i],

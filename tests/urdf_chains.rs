@@ -251,7 +251,6 @@ fn gen3_lite_ros2_with_gripper_locked_half_closed() {
 /// follows the same joint off the chain, which makes the moving bodies a
 /// tree. Refused today with the advice to lock the finger joint.
 #[test]
-#[ignore = "waiting on trees of coupled bodies (a mimic off the chain that follows a chain joint)"]
 fn gen3_lite_ros2_arm_to_a_coupled_fingertip() {
     let urdf = gen3_lite("gen3_lite_ros2_kortex.urdf");
     check(

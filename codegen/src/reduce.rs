@@ -94,6 +94,9 @@ pub struct Body {
     pub limits: Option<Limits>,
     /// Set when the joint follows another one on the chain.
     pub coupling: Option<Coupling>,
+    /// The moving body it hangs from (an index into `Chain::bodies`, always
+    /// smaller); `None` for the base. Coupled bodies may branch.
+    pub parent: Option<usize>,
 }
 
 /// Mass, centre of mass and inertia about the centre of mass, in body axes.
@@ -256,6 +259,7 @@ pub(crate) fn reduce(
                     effects: joint.effects,
                     limits: joint.limits,
                     coupling,
+                    parent: None,
                 });
                 parts.push(Vec::new());
                 parent_body.push(placement.body);
@@ -278,7 +282,7 @@ pub(crate) fn reduce(
     for (body, parts) in bodies.iter_mut().zip(&parts) {
         body.inertial = Inertial::combine(parts);
     }
-    order_serial(description, bodies, parent_body)
+    order_tree(description, bodies, parent_body)
 }
 
 fn children_by_parent<'a>(description: &Tree<'a>) -> HashMap<&'a str, Vec<usize>> {
@@ -354,11 +358,13 @@ fn missing(link: &str) -> Located {
     )
 }
 
-/// Checks that each moving body hangs from the previous one and returns the
-/// bodies base first.
-fn order_serial(
+/// Orders the moving bodies parents first (depth first, in file order) and
+/// checks that the joints that move alone form one serial chain: the
+/// other moving bodies are coupled ones (mimics of a chain joint), which
+/// may branch off it (a gripper's second finger).
+fn order_tree(
     description: &Tree<'_>,
-    bodies: Vec<Body>,
+    mut bodies: Vec<Body>,
     parent_body: Vec<Option<usize>>,
 ) -> Result<Chain, Located> {
     if bodies.is_empty() {
@@ -367,36 +373,47 @@ fn order_serial(
             "the description has no moving joint: add a revolute or prismatic joint that is not locked",
         ));
     }
-    let mut order = Vec::with_capacity(bodies.len());
-    let mut current = None;
-    while order.len() < bodies.len() {
-        let next: Vec<usize> = (0..bodies.len())
-            .filter(|&b| parent_body[b] == current)
-            .collect();
-        match next.as_slice() {
-            [b] => {
-                order.push(*b);
-                current = Some(*b);
-            }
-            [] => break,
-            [a, b, ..] => {
-                let j = joint_index(description, &bodies[*b].joint);
-                let advice = match (&bodies[*a].coupling, &bodies[*b].coupling) {
-                    (Some(c), _) | (_, Some(c)) => {
-                        format!("lock `{}` (its mimics follow it)", c.master)
-                    }
-                    _ => "lock or fix one of them".to_string(),
-                };
-                return Err(Located::new(
-                    KeyPath::root().key("joints").index(j),
-                    format!(
-                        "joints `{}` and `{}` both move the same body: only serial chains are supported \
-                         ({advice})",
-                        bodies[*a].joint, bodies[*b].joint
-                    ),
-                ));
-            }
+    let n = bodies.len();
+    let children = |p: Option<usize>| -> Vec<usize> {
+        (0..n).rev().filter(|&b| parent_body[b] == p).collect()
+    };
+    let mut order = Vec::with_capacity(n);
+    let mut stack = children(None);
+    while let Some(b) = stack.pop() {
+        order.push(b);
+        stack.extend(children(Some(b)));
+    }
+    let ancestor = |a: usize, mut b: usize| loop {
+        match parent_body[b] {
+            Some(p) if p == a => return true,
+            Some(p) => b = p,
+            None => return false,
         }
+    };
+    let free: Vec<usize> = order
+        .iter()
+        .copied()
+        .filter(|&b| bodies[b].coupling.is_none())
+        .collect();
+    for (k, &a) in free.iter().enumerate() {
+        if let Some(&b) = free[k + 1..].iter().find(|&&b| !ancestor(a, b)) {
+            let j = joint_index(description, &bodies[b].joint);
+            return Err(Located::new(
+                KeyPath::root().key("joints").index(j),
+                format!(
+                    "joints `{}` and `{}` both move, on different branches: only serial chains are \
+                     supported (lock or fix one of them)",
+                    bodies[a].joint, bodies[b].joint
+                ),
+            ));
+        }
+    }
+    let mut position = vec![0; n];
+    for (k, &b) in order.iter().enumerate() {
+        position[b] = k;
+    }
+    for (b, body) in bodies.iter_mut().enumerate() {
+        body.parent = parent_body[b].map(|p| position[p]);
     }
     let mut slots: Vec<Option<Body>> = bodies.into_iter().map(Some).collect();
     let mut ordered: Vec<Body> = order.iter().filter_map(|&b| slots[b].take()).collect();

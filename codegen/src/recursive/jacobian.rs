@@ -8,24 +8,30 @@ use crate::program::NodeId;
 use crate::schema::{EFFECTS_PER_JOINT, PARAMETERS_PER_JOINT};
 
 impl Tracer<'_> {
-    /// `twists[k][j]`, j <= k: the unit twist of joint j in body k's axes,
-    pub(super) fn twists(&mut self, rotations: &[Rotation]) -> Vec<Vec<(V3, V3)>> {
+    /// `twists[k][j]`: the unit twist of joint j in body k's axes, for the
+    /// joints j that move body k (its own and its ancestors'), else `None`.
+    pub(super) fn twists(&mut self, rotations: &[Rotation]) -> Vec<Vec<Option<(V3, V3)>>> {
         let n = rotations.len();
         let zero = self.dag.constant(0.0);
-        let mut twists: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
+        let mut twists: Vec<Vec<Option<(V3, V3)>>> = Vec::with_capacity(n);
         for (k, rotation) in rotations.iter().enumerate() {
             let p = self.origin(k);
-            let mut row = Vec::with_capacity(k + 1);
-            for &(w, v) in twists.last().into_iter().flatten() {
-                let wxp = self.cross(w, p);
-                let v = self.add(v, wxp);
-                row.push((
-                    self.in_body_axes(rotation, w),
-                    self.in_body_axes(rotation, v),
-                ));
+            let mut row = vec![None; n];
+            if let Some(parent) = self.chain.bodies[k].parent {
+                for j in 0..n {
+                    let Some((w, v)) = twists[parent][j] else {
+                        continue;
+                    };
+                    let wxp = self.cross(w, p);
+                    let v = self.add(v, wxp);
+                    row[j] = Some((
+                        self.in_body_axes(rotation, w),
+                        self.in_body_axes(rotation, v),
+                    ));
+                }
             }
             let z = self.joint(k).axis;
-            row.push(if self.prismatic(k) {
+            row[k] = Some(if self.prismatic(k) {
                 ([zero; 3], z)
             } else {
                 (z, [zero; 3])
@@ -35,20 +41,22 @@ impl Tracer<'_> {
         twists
     }
 
-    /// M_ij = sum over bodies k >= i, j of twist_ik . (momentum of twist_jk).
-    pub(super) fn mass_matrix(&mut self, twists: &[Vec<(V3, V3)>]) -> Vec<NodeId> {
+    /// M_ij = sum over bodies k moved by joints i and j of
+    /// twist_ik . (momentum of twist_jk).
+    pub(super) fn mass_matrix(&mut self, twists: &[Vec<Option<(V3, V3)>>]) -> Vec<NodeId> {
         let n = twists.len();
-        let mut momenta: Vec<Vec<(V3, V3)>> = Vec::with_capacity(n);
+        let mut momenta: Vec<Vec<Option<(V3, V3)>>> = Vec::with_capacity(n);
         for (k, row) in twists.iter().enumerate() {
             let BodyParameters { m, h, inertia } = self.parameters[k];
             let per_joint = row
                 .iter()
-                .map(|&(w, v)| {
+                .map(|twist| {
+                    let (w, v) = (*twist)?;
                     let mv = self.scale(v, m);
                     let wxh = self.cross(w, h);
                     let iw = self.mat_vec(&inertia, w);
                     let hxv = self.cross(h, v);
-                    (self.add(mv, wxh), self.add(iw, hxv))
+                    Some((self.add(mv, wxh), self.add(iw, hxv)))
                 })
                 .collect();
             momenta.push(per_joint);
@@ -57,12 +65,12 @@ impl Tracer<'_> {
         for i in 0..n {
             for j in i..n {
                 let terms: Vec<NodeId> = (j..n)
-                    .map(|k| {
-                        let (w, v) = twists[k][i];
-                        let (linear, angular) = momenta[k][j];
+                    .filter_map(|k| {
+                        let (w, v) = twists[k][i]?;
+                        let (linear, angular) = momenta[k][j]?;
                         let a = self.dot(v, linear);
                         let b = self.dot(w, angular);
-                        self.dag.sum2(a, b)
+                        Some(self.dag.sum2(a, b))
                     })
                     .collect();
                 let mut entry = self.sum(&terms);
@@ -81,7 +89,7 @@ impl Tracer<'_> {
     /// joint-effect columns (qdd, qd, sign(qd), 1 on the joint's own row).
     pub(super) fn regressor(
         &mut self,
-        twists: &[Vec<(V3, V3)>],
+        twists: &[Vec<Option<(V3, V3)>>],
         motions: &[Motion],
     ) -> Vec<NodeId> {
         let n = motions.len();
@@ -91,7 +99,8 @@ impl Tracer<'_> {
         let mut y = vec![zero; n * width];
         for (k, motion) in motions.iter().enumerate() {
             for (p, (force, moment)) in self.unit_wrenches(motion).into_iter().enumerate() {
-                for (i, &(w, v)) in twists[k].iter().enumerate() {
+                for (i, twist) in twists[k].iter().enumerate() {
+                    let Some((w, v)) = *twist else { continue };
                     let a = self.dot(v, force);
                     let b = self.dot(w, moment);
                     y[i * width + 10 * k + p] = self.dag.sum2(a, b);

@@ -121,13 +121,17 @@ impl Tracer<'_> {
         base: V3,
     ) -> Vec<Motion> {
         let zero = self.dag.constant(0.0);
-        let mut parent = Motion {
+        let base = Motion {
             w: [zero; 3],
             wd: [zero; 3],
             a: base,
         };
-        let mut motions = Vec::with_capacity(state.len());
+        let mut motions: Vec<Motion> = Vec::with_capacity(state.len());
         for (i, s) in state.iter().enumerate() {
+            let parent = match self.chain.bodies[i].parent {
+                Some(p) => motions[p],
+                None => base,
+            };
             let z = self.joint(i).axis;
             let origin = self.origin(i);
             // Acceleration of the body origin, parent axes.
@@ -154,8 +158,7 @@ impl Tracer<'_> {
                 let wd = self.add(wd_in, joint_acceleration);
                 (w, self.add(wd, transport))
             };
-            parent = Motion { w, wd, a };
-            motions.push(parent);
+            motions.push(Motion { w, wd, a });
         }
         motions
     }
@@ -260,13 +263,16 @@ impl Tracer<'_> {
     pub(super) fn backward(&mut self, rotations: &[Rotation], motions: &[Motion]) -> Vec<NodeId> {
         let n = motions.len();
         let mut tau = vec![0; n];
-        let mut outer: Option<(V3, V3)> = None;
+        // Each body's wrench with its children's, in its own axes.
+        let mut total: Vec<(V3, V3)> = Vec::with_capacity(n);
         for i in (0..n).rev() {
             let (mut force, mut moment) = self.wrench(i, &motions[i]);
-            if let Some((f, m)) = outer {
-                let f = self.in_parent_axes(&rotations[i + 1], f);
-                let m = self.in_parent_axes(&rotations[i + 1], m);
-                let p = self.origin(i + 1);
+            let children = (i + 1..n).filter(|&c| self.chain.bodies[c].parent == Some(i));
+            for c in children.collect::<Vec<_>>() {
+                let (f, m) = total[n - 1 - c];
+                let f = self.in_parent_axes(&rotations[c], f);
+                let m = self.in_parent_axes(&rotations[c], m);
+                let p = self.origin(c);
                 let lever = self.cross(p, f);
                 force = self.add(force, f);
                 moment = self.add(moment, m);
@@ -275,7 +281,7 @@ impl Tracer<'_> {
             let z = self.joint(i).axis;
             let along = if self.prismatic(i) { force } else { moment };
             tau[i] = self.dot(z, along);
-            outer = Some((force, moment));
+            total.push((force, moment));
         }
         tau
     }

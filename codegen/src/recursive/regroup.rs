@@ -56,12 +56,12 @@ impl Tracer<'_> {
                 h: kept_h,
                 inertia: kept_inertia,
             };
-            if j == 0 {
+            let Some(p) = self.chain.bodies[j].parent else {
                 continue;
-            }
+            };
             let added = self.moved_to_parent(j, m, along, b);
-            let parent = parameters[j - 1];
-            parameters[j - 1] = BodyParameters {
+            let parent = parameters[p];
+            parameters[p] = BodyParameters {
                 m: self.dag.sum2(parent.m, added.m),
                 h: self.add(parent.h, added.h),
                 inertia: self.mat_add(&parent.inertia, &added.inertia),

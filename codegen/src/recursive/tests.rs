@@ -84,8 +84,12 @@ fn rnea(
     let q: Vec<f64> = (0..n).map(|b| driven(q, b, true)).collect();
     let qd: Vec<f64> = (0..n).map(|b| driven(qd, b, false)).collect();
     let qdd: Vec<f64> = (0..n).map(|b| driven(qdd, b, false)).collect();
-    let (mut w, mut wd) = (V::zeros(), V::zeros());
-    let mut a = if g { -chain.gravity } else { V::zeros() };
+    let base = (
+        V::zeros(),
+        V::zeros(),
+        if g { -chain.gravity } else { V::zeros() },
+    );
+    let mut states: Vec<(V, V, V)> = Vec::new();
     let mut frames = Vec::new();
     let mut wrenches = Vec::new();
     let prismatic = |i: usize| chain.bodies[i].kind == crate::schema::JointKind::Prismatic;
@@ -95,6 +99,7 @@ fn rnea(
         body.translation + body.rotation * body.axis * slide
     };
     for (i, body) in chain.bodies.iter().enumerate() {
+        let (mut w, mut wd, mut a) = body.parent.map_or(base, |p| states[p]);
         let turn = if prismatic(i) { 0.0 } else { q[i] };
         let r = body.rotation * crate::reduce::axis_angle(&body.axis, turn);
         let (z, o) = (body.axis, origin(i));
@@ -114,18 +119,17 @@ fn rnea(
         let force = m * a + wd.cross(&h) + w.cross(&w.cross(&h));
         let moment = inertia * wd + w.cross(&(inertia * w)) + h.cross(&a);
         frames.push(r);
+        states.push((w, wd, a));
         wrenches.push((force, moment));
     }
     let mut tau = vec![0.0; n];
     for i in (0..n).rev() {
-        if i + 1 < n {
-            let (f, m) = wrenches[i + 1];
-            let (f, m) = (frames[i + 1] * f, frames[i + 1] * m);
-            let p = origin(i + 1);
-            wrenches[i].0 += f;
-            wrenches[i].1 += m + p.cross(&f);
-        }
         let (force, moment) = wrenches[i];
+        if let Some(p) = chain.bodies[i].parent {
+            let f = frames[i] * force;
+            wrenches[p].0 += f;
+            wrenches[p].1 += frames[i] * moment + origin(i).cross(&f);
+        }
         let along = if prismatic(i) { force } else { moment };
         tau[i] = chain.bodies[i].axis.dot(&along);
     }
@@ -254,6 +258,32 @@ fn coupled_joints_match_the_numeric_reference() {
     assert_eq!(
         (description.dof(), description.chain().bodies.len()),
         (2, 4)
+    );
+    check_description(&description, 300);
+    // A second finger following the first joint off the chain: the moving
+    // bodies form a tree.
+    let finger = r#"
+    [[links]]
+    name = "e"
+    mass = 0.3
+    com = [0.02, -0.01, 0.05]
+    inertia = { ixx = 0.0004, iyy = 0.0003, izz = 0.0002, ixy = 0.00001 }
+    [[joints]]
+    name = "twin"
+    type = "revolute"
+    parent = "b"
+    child = "e"
+    origin = { xyz = [0.1, 0.05, -0.02], rpy = [0.4, 0.1, -0.2] }
+    axis = [0.0, 0.6, 0.8]
+    mimic = { joint = "slide1", multiplier = -2.0, offset = 0.3 }
+    "#;
+    let tree = format!("{coupled}{finger}");
+    let description = Description::parse(&tree, "tree", Path::new("t.toml")).unwrap();
+    let chain = description.chain();
+    assert_eq!((description.dof(), chain.bodies.len()), (2, 5));
+    assert_eq!(
+        chain.bodies.iter().filter(|b| b.parent == Some(1)).count(),
+        2
     );
     check_description(&description, 300);
 }
