@@ -40,7 +40,6 @@ impl Described {
             .unwrap_or_default();
         let description = codegen::Description::parse(&text, &stem, path)?;
         let model = Model::from_description(&description);
-        let n = model.dof();
         let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
         let joint_names: Vec<&'static str> = description
             .chain()
@@ -49,7 +48,7 @@ impl Described {
             .collect();
         let names = (1..=model.bodies.len())
             .flat_map(|b| INERTIAL_NAMES.map(|p| format!("{p}{b}")))
-            .chain((1..=n).flat_map(|b| EFFECT_NAMES.map(|p| format!("{p}{b}"))))
+            .chain((1..=model.bodies.len()).flat_map(|b| EFFECT_NAMES.map(|p| format!("{p}{b}"))))
             .map(leak)
             .collect::<Vec<_>>();
         let parameters = model.parameters().as_slice().to_vec();
@@ -117,13 +116,14 @@ impl Dynamics for Described {
     }
     fn effects(&self, qd: &[f64]) -> Result<DVector<f64>, DimensionError> {
         self.check("qd", qd)?;
-        Ok(DVector::from_iterator(
-            qd.len(),
-            self.model
-                .free()
-                .zip(qd)
-                .map(|(b, &v)| oracle::effects_torque(&b.effects, v, 0.0)),
-        ))
+        let mut effects = DVector::zeros(qd.len());
+        let zero = vec![0.0; qd.len()];
+        for body in &self.model.bodies {
+            let (d, m, _) = body.driver;
+            let (_, v, _) = body.state(&zero, qd, &zero);
+            effects[d] += m * oracle::effects_torque(&body.effects, v, 0.0);
+        }
+        Ok(effects)
     }
     fn regressor(
         &self,

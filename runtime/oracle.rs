@@ -91,14 +91,13 @@ impl Model {
     /// ([`JointEffects::parameters`]).
     pub fn parameters(&self) -> DVector<f64> {
         let inertial = self.bodies.iter().flat_map(|b| b.parameters);
-        let effects = self.free().flat_map(|b| b.effects.parameters());
+        let effects = self.bodies.iter().flat_map(|b| b.effects.parameters());
         DVector::from_iterator(self.parameter_count(), inertial.chain(effects))
     }
 
-    /// 10 per body and 9 per degree of freedom (19 per degree of freedom
-    /// without mimic joints).
+    /// 19 per moving body (per degree of freedom without mimic joints).
     pub fn parameter_count(&self) -> usize {
-        self.bodies.len() * INERTIAL_PARAMETERS + self.dof() * EFFECT_PARAMETERS
+        self.bodies.len() * (INERTIAL_PARAMETERS + EFFECT_PARAMETERS)
     }
 }
 
@@ -118,9 +117,10 @@ pub fn rnea(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DVector<f64> {
     let params: Vec<[f64; INERTIAL_PARAMETERS]> =
         model.bodies.iter().map(|b| b.parameters).collect();
     let mut tau = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
-    for (i, body) in model.free().enumerate() {
-        tau[i] +=
-            effects_torque(&body.effects, qd[i], qdd[i]) + position_torque(&body.effects, q[i]);
+    for body in &model.bodies {
+        let (d, m, _) = body.driver;
+        let (q, qd, qdd) = body.state(q, qd, qdd);
+        tau[d] += m * (effects_torque(&body.effects, qd, qdd) + position_torque(&body.effects, q));
     }
     tau
 }
@@ -166,8 +166,9 @@ pub fn crba(model: &Model, q: &[f64]) -> DMatrix<f64> {
         let column = rigid_body_torque(model, &params, Vector3::zeros(), q, &zero, &unit);
         m.set_column(j, &column);
     }
-    for (j, body) in model.free().enumerate() {
-        m[(j, j)] += body.effects.armature;
+    for body in &model.bodies {
+        let (d, multiplier, _) = body.driver;
+        m[(d, d)] += multiplier * multiplier * body.effects.armature;
     }
     m
 }
@@ -178,8 +179,10 @@ pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
     let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
     let zero = vec![0.0; model.dof()];
     let mut g = rigid_body_torque(model, &params, model.gravity, q, &zero, &zero);
-    for (i, body) in model.free().enumerate() {
-        g[i] += position_torque(&body.effects, q[i]);
+    for body in &model.bodies {
+        let (d, m, _) = body.driver;
+        let (q, _, _) = body.state(q, &zero, &zero);
+        g[d] += m * position_torque(&body.effects, q);
     }
     g
 }
@@ -192,7 +195,7 @@ pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
 }
 
 /// Regressor Y(q, qd, qdd) with Y * model.parameters() == rnea(q, qd, qdd)
-/// (dim dof x 19*dof): RNEA with one unit parameter at a time.
+/// (dim dof x 19 per moving body): RNEA with one unit parameter at a time.
 pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f64> {
     let (n, bodies) = (model.dof(), model.bodies.len());
     let mut y = DMatrix::zeros(n, model.parameter_count());
@@ -204,19 +207,29 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f
             y.set_column(b * INERTIAL_PARAMETERS + k, &column);
         }
     }
-    for (b, e) in model.free().map(|body| &body.effects).enumerate() {
+    // Each joint's effect columns at its own state, on its degree of
+    // freedom's row times the multiplier.
+    for (b, body) in model.bodies.iter().enumerate() {
+        let (d, m, _) = body.driver;
+        let e = &body.effects;
+        let (q, qd, qdd) = body.state(q, qd, qdd);
+        let sign = coulomb_sign(qd);
+        let angle = e.ripple_cycles * q;
+        let columns = [
+            qdd,
+            qd,
+            sign,
+            1.0,
+            sign * sign,
+            q - e.spring_rest,
+            stribeck_shape(e, qd),
+            angle.sin(),
+            angle.cos(),
+        ];
         let base = bodies * INERTIAL_PARAMETERS + b * EFFECT_PARAMETERS;
-        y[(b, base)] = qdd[b];
-        y[(b, base + 1)] = qd[b];
-        let sign = coulomb_sign(qd[b]);
-        y[(b, base + 2)] = sign;
-        y[(b, base + 3)] = 1.0;
-        y[(b, base + 4)] = sign * sign;
-        y[(b, base + 5)] = q[b] - e.spring_rest;
-        y[(b, base + 6)] = stribeck_shape(e, qd[b]);
-        let angle = e.ripple_cycles * q[b];
-        y[(b, base + 7)] = angle.sin();
-        y[(b, base + 8)] = angle.cos();
+        for (k, column) in columns.into_iter().enumerate() {
+            y[(d, base + k)] = m * column;
+        }
     }
     y
 }
@@ -224,8 +237,9 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f
 /// Kinetic energy 0.5 qd^T M(q) qd of the rigid bodies (no armature).
 pub fn kinetic_energy(model: &Model, q: &[f64], qd: &[f64]) -> f64 {
     let mut m = crba(model, q);
-    for (j, body) in model.free().enumerate() {
-        m[(j, j)] -= body.effects.armature;
+    for body in &model.bodies {
+        let (d, multiplier, _) = body.driver;
+        m[(d, d)] -= multiplier * multiplier * body.effects.armature;
     }
     let v = DVector::from_column_slice(qd);
     0.5 * v.dot(&(m * &v))
@@ -250,12 +264,7 @@ fn rigid_body_torque(
     for (i, body) in model.bodies.iter().enumerate() {
         let (mut w, mut wd, mut vd) = body.parent.map_or(base, |p| motions[p]);
         let a = body.axis.into_inner();
-        let (d, multiplier, offset) = body.driver;
-        let (q, qd, qdd) = (
-            multiplier * q[d] + offset,
-            multiplier * qd[d],
-            multiplier * qdd[d],
-        );
+        let (q, qd, qdd) = body.state(q, qd, qdd);
         let (r, p) = body.placement(q);
         let rt = r.transpose();
         vd = rt * (vd + wd.cross(&p) + w.cross(&w.cross(&p)));
@@ -295,6 +304,13 @@ fn rigid_body_torque(
 }
 
 impl OracleBody {
+    /// The body's joint position, velocity and acceleration from the
+    /// degrees of freedom's.
+    pub fn state(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> (f64, f64, f64) {
+        let (d, m, offset) = self.driver;
+        (m * q[d] + offset, m * qd[d], m * qdd[d])
+    }
+
     /// Whether the joint follows another one's degree of freedom.
     pub fn is_coupled(&self) -> bool {
         self.coupled

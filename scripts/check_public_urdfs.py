@@ -71,6 +71,8 @@ CHAINS = [
      "serial arm, hand with two prismatic fingers (one mimic) held"),
     ("panda_hand_open", "panda_description/urdf/panda.urdf", "panda_link0", "panda_hand_tcp",
      {"panda_finger_joint1": 0.04}, "fingers locked open, the mimic follows"),
+    ("panda_to_finger", "panda_description/urdf/panda.urdf", "panda_link0", "panda_leftfinger", {},
+     "arm to a finger (8 DOF): the other finger follows it off the chain, coupled"),
     ("ur5_gripper", "ur_description/urdf/ur5_gripper.urdf", "world", "tool0", {},
      "serial arm, massless tool frames"),
     ("ur10", "ur_description/urdf/ur10_robot.urdf", "base_link", "tool0", {}, "serial arm"),

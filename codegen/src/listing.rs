@@ -10,7 +10,7 @@ use quote::{format_ident, quote};
 use crate::description::Description;
 use crate::emit::{Input, Printer, int, literal};
 use crate::recursive::{Definition, Traced};
-use crate::schema::{EFFECT_CONSTANTS, EFFECT_NAMES, EFFECTS_PER_JOINT};
+use crate::schema::{EFFECT_CONSTANTS, EFFECT_NAMES, PARAMETERS_PER_JOINT};
 
 /// Names of the ten inertial parameters of body i, Pinocchio's order (the
 /// `PARAMETER_NAMES` stems).
@@ -26,10 +26,7 @@ const INERTIAL_CONSTANTS: [&str; 10] = [
 pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -> TokenStream {
     let chain = description.chain();
     let (n, dofs) = (chain.bodies.len(), chain.dof_bodies());
-    let (dof, count) = (
-        int(dofs.len()),
-        int(10 * n + EFFECTS_PER_JOINT * dofs.len()),
-    );
+    let (dof, count) = (int(dofs.len()), int(PARAMETERS_PER_JOINT * n));
     let joints = dofs
         .iter()
         .map(|&b| Literal::string(&chain.bodies[b].joint));
@@ -53,19 +50,15 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
     let derived = derived(traced, inputs);
     let names: Vec<String> = (1..=n)
         .flat_map(|i| INERTIAL_NAMES.map(|p| format!("{p}{i}")))
-        .chain((1..=dofs.len()).flat_map(|d| EFFECT_NAMES.map(|p| format!("{p}{d}"))))
+        .chain((1..=n).flat_map(|i| EFFECT_NAMES.map(|p| format!("{p}{i}"))))
         .collect();
     let values = (1..=n)
         .flat_map(|i| INERTIAL_CONSTANTS.map(|q| format_ident!("LINK{i}_{q}")))
-        .chain(
-            dofs.iter()
-                .flat_map(|&b| EFFECT_CONSTANTS.map(|q| format_ident!("JOINT{}_{q}", b + 1))),
-        );
+        .chain((1..=n).flat_map(|i| EFFECT_CONSTANTS.map(|q| format_ident!("JOINT{i}_{q}"))));
     quote! {
         /// Number of moving joints (degrees of freedom).
         pub const DOF: usize = #dof;
-        /// Number of regressor parameters: 10 inertial per link, 9 effects per
-        /// degree of freedom.
+        /// Number of regressor parameters: 10 inertial per link, 9 effects per joint.
         pub const NUM_PARAMETERS: usize = #count;
         /// Names of the moving joints, base first.
         pub const JOINT_NAMES: [&str; #dof] = [#(#joints),*];

@@ -214,7 +214,17 @@ pub(crate) fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> 
         }
     }
     validate_hold(joint, &at)?;
-    if !joint.is_free() && *e != JointEffects::default() {
+    if joint.mimic.is_some() && (e.stribeck != 0.0 || e.ripple_sin != 0.0 || e.ripple_cos != 0.0) {
+        return Err(Located::new(
+            at.key("effects"),
+            format!(
+                "joint `{}` is a mimic: it may have armature, friction, an offset and a spring \
+                 (they act on the joint it follows), but not Stribeck friction or a ripple",
+                joint.name
+            ),
+        ));
+    }
+    if !joint.is_free() && joint.mimic.is_none() && *e != JointEffects::default() {
         return Err(Located::new(
             at.key("effects"),
             format!(

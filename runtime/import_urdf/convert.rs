@@ -174,7 +174,10 @@ pub(super) fn convert_joint(
         ));
     }
     let has_dynamics = data.damping != 0.0 || data.friction != 0.0;
-    if has_dynamics && !moving && kind != KindOut::Fixed {
+    // A mimic keeps its friction: it acts on the joint it follows when that
+    // one moves (and is lumped away with it when it is held).
+    let mimic = matches!(role, Role::Mimic(_));
+    if has_dynamics && !moving && !mimic && kind != KindOut::Fixed {
         messages.idle_dynamics.push(joint.name.clone());
     }
     Ok(JointOut {
@@ -194,7 +197,7 @@ pub(super) fn convert_joint(
             Role::Mimic(m) => Some(m.clone()),
             _ => None,
         },
-        effects: (moving && has_dynamics).then_some((data.damping, data.friction)),
+        effects: ((moving || mimic) && has_dynamics).then_some((data.damping, data.friction)),
     })
 }
 

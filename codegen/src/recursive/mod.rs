@@ -62,8 +62,8 @@ pub struct Traced {
     /// viscous qd + coulomb sign(qd) + coulomb_asymmetry |sign(qd)| +
     /// stribeck sign(qd) exp(-(qd/v_s)^2) + offset per joint.
     pub effects: Vec<NodeId>,
-    /// dof x (10 bodies + 9 dof): ten inertial columns per moving body,
-    /// then nine effect columns per degree of freedom.
+    /// dof x 19 bodies: ten inertial columns per moving body, then nine
+    /// effect columns per moving body.
     pub regressor: Vec<NodeId>,
 }
 
@@ -107,33 +107,36 @@ pub fn trace(chain: &Chain) -> Traced {
         .collect();
 
     let motions = t.forward(&rotations, &full, base_acceleration);
+    // Each body's joint torque (rigid body, effects, position), then the
+    // degrees of freedom's.
     let rigid = t.backward(&rotations, &motions);
-    let rigid = t.project(&rigid, 1);
-    let dofs = chain.dof_bodies();
-    let tau = dofs
-        .iter()
-        .zip(rigid)
-        .map(|(&b, rigid)| {
+    let joint_torques: Vec<NodeId> = rigid
+        .into_iter()
+        .enumerate()
+        .map(|(b, rigid)| {
             let effects = t.effects(b, true);
             let position = t.position_torque(b);
             let with_effects = t.dag.sum2(rigid, effects);
             t.dag.sum2(with_effects, position)
         })
         .collect();
+    let tau = t.project(&joint_torques, 1);
     let rest = t.forward(&rotations, &at_rest, base_acceleration);
-    let at_rest = t.backward(&rotations, &rest);
-    let gravity = dofs
-        .iter()
-        .zip(t.project(&at_rest, 1))
-        .map(|(&b, g)| {
+    let at_rest: Vec<NodeId> = t
+        .backward(&rotations, &rest)
+        .into_iter()
+        .enumerate()
+        .map(|(b, g)| {
             let position = t.position_torque(b);
             t.dag.sum2(g, position)
         })
         .collect();
+    let gravity = t.project(&at_rest, 1);
     let moving = t.forward(&rotations, &no_acceleration, gravity_off);
     let coriolis = t.backward(&rotations, &moving);
     let coriolis = t.project(&coriolis, 1);
-    let effects = dofs.iter().map(|&b| t.effects(b, false)).collect();
+    let effects: Vec<NodeId> = (0..n).map(|b| t.effects(b, false)).collect();
+    let effects = t.project(&effects, 1);
     let twists = t.twists(&rotations);
     let mass_matrix = t.mass_matrix(&twists);
     let mass_matrix = t.project_both(&mass_matrix);
@@ -218,7 +221,15 @@ impl Tracer<'_> {
                 let scaled = self.dag.product2(multiplier, own);
                 self.dag.sum2(scaled, offset)
             }
-            _ => self.dag.product2(multiplier, own),
+            QD | QDD => self.dag.product2(multiplier, own),
+            SIGN => {
+                let (_, m, _) = self.chain.driver(b);
+                let turn = self.dag.constant(crate::schema::sign(m));
+                self.dag.product2(turn, own)
+            }
+            // Stribeck and ripple are refused on a coupled joint: their
+            // coefficients are the literal 0 and this input is never used.
+            _ => own,
         }
     }
 
@@ -261,27 +272,11 @@ impl Tracer<'_> {
         (0..n * n).map(|k| both[(k % n) * n + k / n]).collect()
     }
 
-    /// The regressor's rows projected, its effect columns kept for the
-    /// degrees of freedom (a coupled joint has no effects).
+    /// The regressor's rows projected onto the degrees of freedom (its
+    /// columns stay per moving body: ten inertial and nine effects each).
     fn project_regressor(&mut self, y: &[NodeId]) -> Vec<NodeId> {
-        if !self.chain.is_coupled() {
-            return y.to_vec();
-        }
-        let nb = self.chain.bodies.len();
-        let width = crate::schema::PARAMETERS_PER_JOINT * nb;
-        let rows = self.project(y, width);
-        let dofs = self.chain.dof_bodies();
-        let effects = crate::schema::EFFECTS_PER_JOINT;
-        let columns: Vec<usize> = (0..10 * nb)
-            .chain(
-                dofs.iter()
-                    .flat_map(|&b| (0..effects).map(move |k| 10 * nb + effects * b + k)),
-            )
-            .collect();
-        (0..dofs.len())
-            .flat_map(|d| columns.iter().map(move |&c| (d, c)))
-            .map(|(d, c)| rows[d * width + c])
-            .collect()
+        let width = crate::schema::PARAMETERS_PER_JOINT * self.chain.bodies.len();
+        self.project(y, width)
     }
 
     fn joint(&self, i: usize) -> &JointLeaves {

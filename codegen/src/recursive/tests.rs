@@ -164,11 +164,6 @@ fn check_description(description: &Description, samples: usize) {
         .iter()
         .map(|b| b.inertial.standard_parameters())
         .collect();
-    let effects: Vec<_> = chain
-        .dof_bodies()
-        .iter()
-        .map(|&b| chain.bodies[b].effects)
-        .collect();
     let mut state = 7;
     for sample in 0..samples {
         let mut random =
@@ -179,24 +174,30 @@ fn check_description(description: &Description, samples: usize) {
         let zeros = vec![0.0; n];
         let mut tau = rnea(chain, &params, &q, &qd, &qdd, true);
         let mut gravity = rnea(chain, &params, &q, &zeros, &zeros, true);
-        for (i, e) in effects.iter().enumerate() {
-            let (sign, angle) = (qd[i].signum(), e.ripple_cycles * q[i]);
-            let position = e.spring * (q[i] - e.spring_rest)
+        // Each joint's effects at its own state, on its degree of freedom
+        // times the multiplier (1 for a joint that moves alone).
+        for (b, body) in chain.bodies.iter().enumerate() {
+            let (d, m, offset) = chain.driver(b);
+            let e = &body.effects;
+            let (q, qd, qdd) = (m * q[d] + offset, m * qd[d], m * qdd[d]);
+            let (sign, angle) = (qd.signum(), e.ripple_cycles * q);
+            let position = e.spring * (q - e.spring_rest)
                 + e.ripple_sin * angle.sin()
                 + e.ripple_cos * angle.cos();
             let breakaway = if e.stribeck_velocity > 0.0 {
-                sign * (-(qd[i] / e.stribeck_velocity).powi(2)).exp()
+                sign * (-(qd / e.stribeck_velocity).powi(2)).exp()
             } else {
                 0.0
             };
-            tau[i] += e.armature * qdd[i]
-                + e.viscous * qd[i]
-                + e.coulomb * sign
-                + e.coulomb_asymmetry * sign * sign
-                + e.stribeck * breakaway
-                + e.offset
-                + position;
-            gravity[i] += position;
+            tau[d] += m
+                * (e.armature * qdd
+                    + e.viscous * qd
+                    + e.coulomb * sign
+                    + e.coulomb_asymmetry * sign * sign
+                    + e.stribeck * breakaway
+                    + e.offset
+                    + position);
+            gravity[d] += m * position;
         }
         assert_close("tau", &eval(&traced.tau), &tau);
         assert_close("gravity", &eval(&traced.gravity), &gravity);
@@ -211,8 +212,12 @@ fn check_description(description: &Description, samples: usize) {
             unit[j] = 1.0;
             let column = rnea(chain, &params, &q, &zeros, &unit, false);
             for i in 0..n {
-                mass[i * n + j] = column[i] + if i == j { effects[i].armature } else { 0.0 };
+                mass[i * n + j] = column[i];
             }
+        }
+        for (b, body) in chain.bodies.iter().enumerate() {
+            let (d, m, _) = chain.driver(b);
+            mass[d * n + d] += m * m * body.effects.armature;
         }
         assert_close("mass_matrix", &eval(&traced.mass_matrix), &mass);
         let y = eval(&traced.regressor);
@@ -220,7 +225,7 @@ fn check_description(description: &Description, samples: usize) {
             let mut unit = vec![[0.0; 10]; bodies];
             unit[k][p] = 1.0;
             let column = rnea(chain, &unit, &q, &qd, &qdd, true);
-            let width = 10 * bodies + crate::schema::EFFECTS_PER_JOINT * n;
+            let width = crate::schema::PARAMETERS_PER_JOINT * bodies;
             let got: Vec<f64> = (0..n).map(|i| y[i * width + 10 * k + p]).collect();
             assert_close("regressor", &got, &column);
         }
@@ -245,7 +250,7 @@ fn coupled_joints_match_the_numeric_reference() {
     let coupled = SLIDERS
         .replacen(
             "    axis = [1.0, 0.0, 0.0]\n    effects = { coulomb = 3.0, coulomb_asymmetry = 1.0, stribeck = 2.0, stribeck_velocity = 0.02, ripple_sin = 0.5, ripple_cos = 0.2, ripple_cycles = 200.0 }",
-            "    axis = [1.0, 0.0, 0.0]\n    mimic = { joint = \"slide4\", multiplier = -0.7, offset = 0.02 }",
+            "    axis = [1.0, 0.0, 0.0]\n    mimic = { joint = \"slide4\", multiplier = -0.7, offset = 0.02 }\n    effects = { armature = 0.4, viscous = 3.0, coulomb = 1.5, coulomb_asymmetry = 0.5, offset = 0.2, spring = 30.0, spring_rest = 0.01 }",
             1,
         )
         .replacen(
