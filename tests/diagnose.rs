@@ -179,8 +179,10 @@ fn armature_on_one_joint() {
 
 /// With raw torque and a short Savitzky-Golay filter a payload far out on
 /// the last link (tiny mass, long lever) fits joint 1's missing inertia
-/// best, but its mass is not significant: it is refused with a note and
-/// the armature is still named (low by about 15%: the 0.2 s filter's noisy
+/// about as well as the armature. It explains no other joint, so the
+/// joint's own effect is taken (a body must be broader to win a near tie);
+/// where the payload is tried it is refused as not significant. Either way
+/// the armature is named (low by about 15%: the 0.2 s filter's noisy
 /// acceleration attenuates the fit, errors in the variables).
 #[test]
 fn an_undetermined_payload_does_not_hide_the_armature() {
@@ -209,10 +211,12 @@ fn an_undetermined_payload_does_not_hide_the_armature() {
         "{}",
         serde_json::to_string(&d).unwrap()
     );
+    let payload_tried = d.notes.iter().any(|n| n.contains("payload"));
     assert!(
-        d.notes
-            .iter()
-            .any(|n| n.contains("payload") && n.contains("not significant")),
+        !payload_tried
+            || d.notes
+                .iter()
+                .any(|n| n.contains("payload") && n.contains("not significant")),
         "{:?}",
         d.notes
     );

@@ -1,36 +1,60 @@
 //! A prismatic axis end to end, as a user runs it: the virtual robot
-//! records a gantry (the shipped lift-and-arm turned so its linear axis is
-//! horizontal) whose axis has more viscous friction and a force offset than
-//! its description says, and `sdnn diagnose` with no flags names both, in
-//! N s/m and N.
+//! records the shipped lift-and-arm, upright and turned into a gantry (its
+//! linear axis horizontal), whose axis has more viscous friction and a
+//! force offset than its description says, and `sdnn diagnose` with no
+//! flags names both, in N s/m and N.
 
 use crate::util::{Dir, root, sdnn, sdnn_json};
 
-/// The shipped lift with its axis along x, and `effects` on the axis.
-fn gantry(effects: &str) -> String {
+/// The shipped lift with `effects` on its axis, turned along x for a
+/// gantry.
+fn lift(effects: &str, gantry: bool) -> String {
     let lift = std::fs::read_to_string(root().join("models/lift_arm.toml")).unwrap();
     let nominal = "effects = { armature = 2.0, viscous = 40.0, coulomb = 12.0 }";
     assert!(
         lift.contains(nominal) && lift.contains("axis = [0.0, 0.0, 1.0]\nlimits = { lower = 0.0")
     );
+    let axis = if gantry {
+        "1.0, 0.0, 0.0"
+    } else {
+        "0.0, 0.0, 1.0"
+    };
     lift.replacen(
         "axis = [0.0, 0.0, 1.0]\nlimits = { lower = 0.0",
-        "axis = [1.0, 0.0, 0.0]\nlimits = { lower = 0.0",
+        &format!("axis = [{axis}]\nlimits = {{ lower = 0.0"),
         1,
     )
     .replacen(nominal, effects, 1)
 }
 
 #[test]
-fn viscous_friction_and_a_force_offset_on_a_prismatic_axis_are_named() {
+fn viscous_friction_and_a_force_offset_on_a_gantry_axis_are_named() {
+    hidden_friction_and_offset_are_named(true);
+}
+
+/// Upright, the offset is a constant force beside the constant weight the
+/// lift carries (mass on an axis no other joint feels would fit it as
+/// well): the joint's own effect is named.
+#[test]
+fn viscous_friction_and_a_force_offset_on_a_lift_are_named() {
+    hidden_friction_and_offset_are_named(false);
+}
+
+fn hidden_friction_and_offset_are_named(gantry: bool) {
     let dir = Dir::new();
     let model = dir.write(
-        "gantry.toml",
-        &gantry("effects = { armature = 2.0, viscous = 40.0, coulomb = 12.0 }"),
+        "axis.toml",
+        &lift(
+            "effects = { armature = 2.0, viscous = 40.0, coulomb = 12.0 }",
+            gantry,
+        ),
     );
     let plant = dir.write(
-        "gantry_plant.toml",
-        &gantry("effects = { armature = 2.0, viscous = 90.0, coulomb = 12.0, offset = 8.0 }"),
+        "axis_plant.toml",
+        &lift(
+            "effects = { armature = 2.0, viscous = 90.0, coulomb = 12.0, offset = 8.0 }",
+            gantry,
+        ),
     );
     let recordings = dir.path().join("recordings");
     let path = |p: &std::path::Path| p.to_str().unwrap().to_string();

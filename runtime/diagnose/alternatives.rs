@@ -81,13 +81,20 @@ pub(super) fn runners_up(
 /// error over all joints (summed relative drops from `current`). A torque
 /// scale and a heavier tip scale the same gravity torques on one joint;
 /// the body also explains the other joints it loads, the scale does not.
+/// A body that explains no other joint (less than [`ELSEWHERE`]) is no
+/// broader than the joint's own effect, and has more parameters: there the
+/// best joint-level candidate of the near ones is taken (a constant force
+/// on a vertical lift is an offset, not mass on an axis no other joint
+/// feels). `is_link(c)`: whether candidate c is a body (payload or link
+/// error).
 pub(super) fn broadest<'a>(
     scored: &'a [(usize, Gain, Vec<f64>)],
     best: &'a (usize, Gain, Vec<f64>),
     current: &[f64],
+    is_link: &dyn Fn(usize) -> bool,
 ) -> &'a (usize, Gain, Vec<f64>) {
     let joint = best.1.joint;
-    let cut = |mse: &[f64]| -> f64 {
+    let drops = |mse: &[f64]| -> Vec<f64> {
         mse.iter()
             .zip(current)
             .map(|(a, b)| {
@@ -97,14 +104,31 @@ pub(super) fn broadest<'a>(
                     0.0
                 }
             })
-            .sum()
+            .collect()
     };
-    scored
+    let cut = |mse: &[f64]| -> f64 { drops(mse).iter().sum() };
+    let elsewhere = |mse: &[f64]| -> f64 { cut(mse) - drops(mse)[joint] };
+    let near: Vec<&(usize, Gain, Vec<f64>)> = scored
         .iter()
         .filter(|(_, _, mse)| mse[joint] <= NEAR * best.2[joint])
+        .collect();
+    let broadest = near
+        .iter()
+        .copied()
         .max_by(|a, b| cut(&a.2).total_cmp(&cut(&b.2)))
-        .unwrap_or(best)
+        .unwrap_or(best);
+    if !is_link(broadest.0) || elsewhere(&broadest.2) >= ELSEWHERE {
+        return broadest;
+    }
+    near.into_iter()
+        .filter(|(c, _, _)| !is_link(*c))
+        .min_by(|a, b| a.2[joint].total_cmp(&b.2[joint]))
+        .unwrap_or(broadest)
 }
+
+/// Summed relative drop of the other joints' held-out MSE below which a
+/// body explains nothing beyond the step's joint.
+pub const ELSEWHERE: f64 = 0.05;
 
 /// A payload and the last link's inertial error change the same ten
 /// columns and differ only in second moments. Where a named link error can
@@ -274,9 +298,24 @@ mod tests {
         let scale = (0, gain(0.943), vec![0.0055, 0.84, 0.00907]);
         let payload = (1, gain(0.938), vec![0.00061, 0.1506, 0.00982]);
         let far = (2, gain(0.80), vec![0.00061, 0.1506, 0.0316]);
+        let link = |c: usize| c != 0;
         let scored = [scale.clone(), payload, far.clone()];
-        assert_eq!(broadest(&scored, &scored[0], &current).0, 1);
+        assert_eq!(broadest(&scored, &scored[0], &current, &link).0, 1);
         let scored = [scale, far];
-        assert_eq!(broadest(&scored, &scored[0], &current).0, 0);
+        assert_eq!(broadest(&scored, &scored[0], &current, &link).0, 0);
+    }
+
+    /// A vertical lift's constant force: mass on an axis no other joint
+    /// feels fits joint 0 a little better than the offset, and explains
+    /// nothing else: the offset (joint-level, fewer parameters) is named.
+    #[test]
+    fn a_body_that_explains_only_the_step_joint_yields_to_the_joint_effect() {
+        let current = [76.0, 0.0105, 0.0176];
+        let gain = |share| Gain { share, joint: 0 };
+        let body = (0, gain(0.83), vec![12.7, 0.0104, 0.0175]);
+        let offset = (1, gain(0.82), vec![13.5, 0.0105, 0.0176]);
+        let link = |c: usize| c == 0;
+        let scored = [body, offset];
+        assert_eq!(broadest(&scored, &scored[0], &current, &link).0, 1);
     }
 }

@@ -168,7 +168,10 @@ pub(super) fn select(
         let best = scored
             .iter()
             .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
-            .map(|best| broadest(&scored, best, &current))
+            .map(|best| {
+                let is_link = |c: usize| candidates[c].link.is_some();
+                broadest(&scored, best, &current, &is_link)
+            })
             .cloned();
         let Some((c, gain, mse)) = best else { break };
         let mut trial = selected.clone();
