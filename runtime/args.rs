@@ -47,6 +47,24 @@ pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
     })
 }
 
+/// Refuses `--angles deg` for a model with prismatic joints: their columns
+/// are metres, which the option would convert as degrees. Convert the
+/// revolute columns to radians first.
+pub fn check_angle_units(model: &dyn Dynamics, units: Units) -> Result<()> {
+    let degrees = matches!(units.angles, AngleUnit::Degrees);
+    let levers = crate::dynamics::joint_levers(model);
+    if let Some(j) = levers.iter().position(|&l| l != 1.0).filter(|_| degrees) {
+        anyhow::bail!(
+            "--angles deg converts every joint's q, qd and qdd from degrees, but joint {} of \
+             model `{}` is prismatic (metres): convert the revolute joints' columns to radians \
+             and leave out --angles",
+            j + 1,
+            model.name()
+        );
+    }
+    Ok(())
+}
+
 /// The description file a `--model` argument names, when it is a path
 /// (ends in `.toml`) rather than a compiled model's name.
 pub fn model_path(name: &str) -> Option<std::path::PathBuf> {

@@ -132,6 +132,7 @@ fn tau(
     options: ReadOptions,
 ) -> Result<()> {
     let model = find_model(name)?;
+    crate::args::check_angle_units(model, options.units)?;
     let options = ReadOptions {
         dof: Some(model.dof()),
         ..options

@@ -132,3 +132,28 @@ fn hidden_friction_and_offset_are_named(gantry: bool) {
     assert!(after < 0.3 * before, "joint 1 MSE {before} -> {after}");
     assert!(!text.contains("N m s/rad"), "{text}");
 }
+
+/// `--angles deg` would read a prismatic joint's metres as degrees: refused.
+#[test]
+fn degrees_are_refused_for_a_model_with_a_prismatic_joint() {
+    let dir = Dir::new();
+    let states = dir.write(
+        "states.csv",
+        "q1,q2,q3,q4,qd1,qd2,qd3,qd4,qdd1,qdd2,qdd3,qdd4\n0.1,10,20,30,0,0,0,0,0,0,0,0\n",
+    );
+    let run = sdnn(&[
+        "tau",
+        "--model",
+        "lift_arm",
+        "--angles",
+        "deg",
+        "--input",
+        states.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    let message = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        message.contains("joint 1") && message.contains("prismatic"),
+        "{message}"
+    );
+}

@@ -262,6 +262,12 @@ fn gen3_lite_ros2_arm_to_a_coupled_fingertip() {
     );
 }
 
+/// A finger that mimics the chain from the fixed base moves with it.
+#[test]
+fn a_finger_on_the_fixed_base_follows_the_chain() {
+    check("palm_gripper", &palm_gripper(), "palm", "dist_l", &[]);
+}
+
 #[test]
 fn gen3_lite_gripper_finger() {
     let urdf = gen3_lite("GEN3-LITE-GRIPPER_URDF_SIMPLIFIED_V2.urdf");

@@ -8,7 +8,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::DMatrix;
 
-use crate::args::{AngleArg, Format, find_model};
+use crate::args::{AngleArg, Format, check_angle_units, find_model};
 use crate::corrections::Corrections;
 use crate::diagnose::Diagnosis;
 use crate::dynamics::Dynamics;
@@ -154,6 +154,7 @@ pub struct SynthArgs {
 
 pub fn synth(args: &SynthArgs) -> Result<()> {
     let model = find_model(&args.model)?;
+    check_angle_units(model, args.input.angles.into())?;
     crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
@@ -280,6 +281,7 @@ pub struct EvaluateArgs {
 
 pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     let model = find_model(&args.model)?;
+    check_angle_units(model, args.input.angles.into())?;
     let network = args.nn.as_ref().map(Mlp::load).transpose()?;
     if let (Some(n), Some(path)) = (&network, &args.nn) {
         let dof = model.dof();

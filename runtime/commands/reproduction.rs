@@ -241,6 +241,7 @@ pub struct StudyArgs {
 /// The SDNN study on measured recordings (see `study::run_on_measurements`).
 pub fn study_command(args: &StudyArgs) -> Result<()> {
     let nominal = find_model(&args.model)?;
+    crate::args::check_angle_units(nominal, args.input.angles.into())?;
     let recordings = args.input.read_all(&args.data, Some(nominal.dof()))?;
     let config = StudyConfig {
         preprocess: args.filter.resolve(&recordings)?.settings,

@@ -196,11 +196,15 @@ fn keep(tree: &Tree<'_>, locks: &Locks, s: &mut Selection) -> Result<(), ImportE
                     fixed.insert(child);
                 }
             } else if from_base {
-                if !locks.subtree_rigid(tree, j) {
+                if follows_the_chain(tree, j, &on_path) {
+                    // A finger that mimics a chain joint moves with it:
+                    // kept, its mimics coupled, its other joints held.
+                } else if !locks.subtree_rigid(tree, j) {
                     s.base_branches.push(j);
                     continue;
+                } else {
+                    fixed.insert(child);
                 }
-                fixed.insert(child);
             } else if is_free(tree.kind(j)) {
                 s.dropped.push(j);
                 continue;
@@ -233,6 +237,25 @@ fn keep(tree: &Tree<'_>, locks: &Locks, s: &mut Selection) -> Result<(), ImportE
 /// Floating, planar (and spherical): no single degree of freedom.
 pub(super) fn is_free(kind: Kind) -> bool {
     !kind.is_single_dof() && kind != Kind::Fixed
+}
+
+/// Whether a joint below `joint` (or `joint` itself) follows a joint of the
+/// chain, directly or through other mimics.
+fn follows_the_chain(tree: &Tree<'_>, joint: usize, on_path: &HashSet<usize>) -> bool {
+    tree.subtree_joints(joint).into_iter().any(|b| {
+        let mut current = b;
+        // A mimic chain is at most as long as the URDF has joints.
+        for _ in 0..=tree.joint_index.len() {
+            let Some(m) = mimic(tree, current) else {
+                return false;
+            };
+            current = tree.joint_index[m.joint.as_str()];
+            if on_path.contains(&current) {
+                return true;
+            }
+        }
+        false
+    })
 }
 
 /// A joint's `<mimic>` when it names a joint of the URDF (a mimic of a

@@ -109,6 +109,13 @@ impl JointLimits {
         self.position.len()
     }
 
+    /// The margin kept inside joint `j`'s range: `margin`, or a quarter of
+    /// a shorter range (a gripper's few centimetres of stroke).
+    pub fn margin(&self, j: usize, margin: f64) -> f64 {
+        let (lower, upper) = self.position[j];
+        margin.min(0.25 * (upper - lower)).max(0.0)
+    }
+
     /// Checks list lengths, positive caps and non-empty usable ranges.
     pub fn validate(&self, margin: f64) -> Result<(), ReferenceError> {
         let dof = self.dof();
@@ -119,6 +126,7 @@ impl JointLimits {
         check_len("acceleration limits", self.acceleration.len(), dof)?;
         check_non_negative("margin", margin)?;
         for (joint, &(lower, upper)) in self.position.iter().enumerate() {
+            let margin = self.margin(joint, margin);
             let usable = upper - margin - (lower + margin);
             if !(lower.is_finite() && upper.is_finite() && usable >= 0.0) {
                 return Err(ReferenceError::EmptyRange {
@@ -264,7 +272,8 @@ impl WaypointTrajectory {
 /// Segments of joint `j` until they cover the duration.
 fn joint_segments(config: &WaypointConfig, j: usize, rng: &mut ChaCha8Rng) -> Vec<Segment> {
     let (lower, upper) = config.limits.position[j];
-    let (lo, hi) = (lower + config.margin, upper - config.margin);
+    let margin = config.limits.margin(j, config.margin);
+    let (lo, hi) = (lower + margin, upper - margin);
     let (vmax, amax) = (config.limits.velocity[j], config.limits.acceleration[j]);
     let mut q = rng.random_range(lo..=hi);
     let mut start = 0.0;
@@ -419,7 +428,7 @@ fn fourier_joint(
     let a: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..=1.0)).collect();
     let b: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..=1.0)).collect();
     let (lower, upper) = config.limits.position[j];
-    let half_range = 0.5 * (upper - lower) - config.margin;
+    let half_range = 0.5 * (upper - lower) - config.limits.margin(j, config.margin);
     let (mut pos, mut vel, mut acc) = (0.0, 0.0, 0.0);
     for k in 0..n {
         let wk = omega * (k + 1) as f64;
@@ -611,10 +620,14 @@ mod tests {
             WaypointTrajectory::new(&cfg, 0),
             Err(ReferenceError::LengthMismatch { .. })
         ));
-        let cfg = WaypointConfig {
+        // A margin wider than the range shrinks to a quarter of it (a
+        // gripper's short stroke); a reversed range is empty.
+        let mut cfg = WaypointConfig {
             margin: 3.0,
             ..Default::default()
         };
+        assert!(WaypointTrajectory::new(&cfg, 0).is_ok());
+        cfg.limits.position[0] = (1.0, -1.0);
         assert!(matches!(
             WaypointTrajectory::new(&cfg, 0),
             Err(ReferenceError::EmptyRange { joint: 0, .. })

@@ -550,3 +550,43 @@ pub fn humanoid() -> String {
     ]);
     robot("humanoid", &parts)
 }
+
+/// A gripper on its own, its palm the fixed base: the left finger is the
+/// chain, the right finger hangs from the palm and mimics the left one's
+/// joint, with damping (it moves with the chain, it is no fixed branch).
+pub fn palm_gripper() -> String {
+    let finger = |side: &str, sign: f64, extra: &str| {
+        [
+            body(&format!("knuckle_{side}"), 0.08, [0.0, 0.01 * sign, 0.03]),
+            joint(
+                &format!("knuckle_{side}_joint"),
+                "revolute",
+                "palm",
+                &format!("knuckle_{side}"),
+                [0.0, 0.03 * sign, 0.05],
+                [0.0, 0.0, 0.2 * sign],
+                [1.0, 0.0, 0.0],
+                &format!(r#"<limit lower="-0.5" upper="0.8" effort="5" velocity="2"/>{extra}"#),
+            ),
+            body(&format!("dist_{side}"), 0.05, [0.0, 0.0, 0.02]),
+            joint(
+                &format!("dist_{side}_joint"),
+                "revolute",
+                &format!("knuckle_{side}"),
+                &format!("dist_{side}"),
+                [0.0, 0.0, 0.06],
+                [0.1, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                r#"<limit lower="-0.5" upper="0.8" effort="5" velocity="2"/>"#,
+            ),
+        ]
+    };
+    let mut parts = vec![body("palm", 0.3, [0.0, 0.0, 0.02])];
+    parts.extend(finger("l", 1.0, ""));
+    parts.extend(finger(
+        "r",
+        -1.0,
+        r#"<mimic joint="knuckle_l_joint" multiplier="-1.0" offset="0.05"/><dynamics damping="0.2"/>"#,
+    ));
+    robot("palm_gripper", &parts)
+}
