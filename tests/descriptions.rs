@@ -281,6 +281,15 @@ fn branched_chain_is_rejected() {
 }
 
 #[test]
+fn a_negative_coulomb_level_is_named_as_such() {
+    let message = error_after(
+        "type = \"revolute\"\nparent = \"a\"",
+        "type = \"revolute\"\neffects = { coulomb = -4.0 }\nparent = \"a\"",
+    );
+    assert_mentions(&message, &["`joints[1].effects.coulomb`", "must be >= 0"]);
+}
+
+#[test]
 fn effects_on_a_fixed_joint_are_rejected() {
     let message = error_after(
         "type = \"revolute\"\nparent = \"a\"",

@@ -254,3 +254,30 @@ fn continuous_joints_keep_speed_and_effort_limits_without_a_range() {
         "{error}"
     );
 }
+
+/// A mimic with multiplier 0 never moves: refused with the lock to write.
+#[test]
+fn a_mimic_with_multiplier_zero_is_refused() {
+    let source = arm_with_hand(
+        &(finger(
+            "left",
+            "prismatic",
+            [0.0; 3],
+            [0.0, 1.0, 0.0],
+            "locked = 0.0",
+        ) + &finger(
+            "right",
+            "revolute",
+            [0.0; 3],
+            [1.0, 0.0, 0.0],
+            "mimic = { joint = \"left\", multiplier = 0.0, offset = 0.1 }",
+        )),
+    );
+    let error = Description::parse(&source, "hand", Path::new("hand.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("mimic.multiplier") && error.contains("locked = 0.1"),
+        "{error}"
+    );
+}

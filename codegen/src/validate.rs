@@ -186,16 +186,6 @@ pub(crate) fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> 
         "effect coefficient",
     )?;
     shaping_numbers(e, &joint.name, &at.key("effects"))?;
-    if e.coulomb_asymmetry.abs() > e.coulomb {
-        return Err(Located::new(
-            at.key("effects").key("coulomb_asymmetry"),
-            format!(
-                "coulomb_asymmetry of joint `{}` is {}, beyond coulomb ({}): one direction's \
-                 friction level (coulomb - |coulomb_asymmetry|) would be negative",
-                joint.name, e.coulomb_asymmetry, e.coulomb
-            ),
-        ));
-    }
     for (key, value) in [
         ("armature", e.armature),
         ("viscous", e.viscous),
@@ -212,6 +202,16 @@ pub(crate) fn validate_joint(joint: &Joint, at: KeyPath) -> Result<(), Located> 
                 ),
             ));
         }
+    }
+    if e.coulomb_asymmetry.abs() > e.coulomb {
+        return Err(Located::new(
+            at.key("effects").key("coulomb_asymmetry"),
+            format!(
+                "coulomb_asymmetry of joint `{}` is {}, beyond coulomb ({}): one direction's \
+                 friction level (coulomb - |coulomb_asymmetry|) would be negative",
+                joint.name, e.coulomb_asymmetry, e.coulomb
+            ),
+        ));
     }
     validate_hold(joint, &at)?;
     if joint.mimic.is_some() && (e.stribeck != 0.0 || e.ripple_sin != 0.0 || e.ripple_cos != 0.0) {
@@ -270,6 +270,16 @@ fn validate_hold(joint: &Joint, at: &KeyPath) -> Result<(), Located> {
         return Err(Located::new(
             at,
             "mimic multiplier and offset must be finite numbers",
+        ));
+    }
+    if mimic.multiplier == 0.0 {
+        return Err(Located::new(
+            at.key("multiplier"),
+            format!(
+                "mimic multiplier of joint `{}` is 0: the joint never moves; lock it at the \
+                 offset instead (`locked = {}`)",
+                joint.name, mimic.offset
+            ),
         ));
     }
     plausible(
