@@ -229,28 +229,28 @@ impl Function<'_> {
                 lines.push(quote! { let (#s, #c) = sin_cos(#cycles * q[#index]); });
             }
         }
-        for &input in used {
-            if let Input::MimicSin(b, d) = input {
-                let cosine = Input::MimicCos(b, d);
-                let (s, c) = (input.ident(), cosine.ident());
-                let c = if has(cosine) {
-                    quote! { #c }
+        // A coupled body's angle, once for its sine and cosine.
+        let mut coupled: Vec<(usize, usize)> = used
+            .iter()
+            .filter_map(|input| match *input {
+                Input::MimicSin(b, d) | Input::MimicCos(b, d) => Some((b, d)),
+                _ => None,
+            })
+            .collect();
+        coupled.dedup();
+        for (b, d) in coupled {
+            let [s, c] = [Input::MimicSin(b, d), Input::MimicCos(b, d)].map(|input| {
+                let ident = input.ident();
+                if has(input) {
+                    quote! { #ident }
                 } else {
                     quote! { _ }
-                };
-                let multiplier = format_ident!("JOINT{}_MIMIC_MULTIPLIER", b + 1);
-                let offset = format_ident!("JOINT{}_MIMIC_OFFSET", b + 1);
-                let index = int(d);
-                lines.push(quote! { let (#s, #c) = sin_cos(#multiplier * q[#index] + #offset); });
-            } else if let Input::MimicCos(b, d) = input
-                && !has(Input::MimicSin(b, d))
-            {
-                let c = input.ident();
-                let multiplier = format_ident!("JOINT{}_MIMIC_MULTIPLIER", b + 1);
-                let offset = format_ident!("JOINT{}_MIMIC_OFFSET", b + 1);
-                let index = int(d);
-                lines.push(quote! { let (_, #c) = sin_cos(#multiplier * q[#index] + #offset); });
-            }
+                }
+            });
+            let multiplier = format_ident!("JOINT{}_MIMIC_MULTIPLIER", b + 1);
+            let offset = format_ident!("JOINT{}_MIMIC_OFFSET", b + 1);
+            let index = int(d);
+            lines.push(quote! { let (#s, #c) = sin_cos(#multiplier * q[#index] + #offset); });
         }
         lines
     }
