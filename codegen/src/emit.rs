@@ -72,6 +72,64 @@ impl Input {
 pub enum Shape {
     Vector(usize),
     Matrix(usize, usize),
+    /// Two matrices of one size, returned as a pair.
+    Pair(usize, usize),
+    /// `Pose`s (12 roots each: rotation row-major, then position).
+    Poses(usize),
+    Pose,
+}
+
+impl Shape {
+    /// The Rust type of the result.
+    fn rust_type(self) -> TokenStream {
+        let matrix = |rows: usize, cols: usize| {
+            let (rows, cols) = (int(rows), int(cols));
+            quote! { [[f64; #cols]; #rows] }
+        };
+        match self {
+            Shape::Vector(len) => {
+                let len = int(len);
+                quote! { [f64; #len] }
+            }
+            Shape::Matrix(rows, cols) => matrix(rows, cols),
+            Shape::Pair(rows, cols) => {
+                let one = matrix(rows, cols);
+                quote! { (#one, #one) }
+            }
+            Shape::Poses(count) => {
+                let count = int(count);
+                quote! { [Pose; #count] }
+            }
+            Shape::Pose => quote! { Pose },
+        }
+    }
+
+    /// The result expression from the roots' expressions, in order.
+    fn value(self, values: &[TokenStream]) -> TokenStream {
+        let matrix = |values: &[TokenStream], cols: usize| {
+            let rows = values.chunks(cols).map(|row| quote! { [#(#row),*] });
+            quote! { [#(#rows),*] }
+        };
+        let pose = |v: &[TokenStream]| {
+            let rotation = matrix(&v[..9], 3);
+            let position = &v[9..12];
+            quote! { Pose { rotation: #rotation, position: [#(#position),*] } }
+        };
+        match self {
+            Shape::Vector(_) => quote! { [#(#values),*] },
+            Shape::Matrix(_, cols) => matrix(values, cols),
+            Shape::Pair(rows, cols) => {
+                let (first, second) = values.split_at(rows * cols);
+                let (first, second) = (matrix(first, cols), matrix(second, cols));
+                quote! { (#first, #second) }
+            }
+            Shape::Poses(_) => {
+                let poses = values.chunks(12).map(pose);
+                quote! { [#(#poses),*] }
+            }
+            Shape::Pose => pose(values),
+        }
+    }
 }
 
 /// One generated function: its DAG, inputs and row-major result roots.
@@ -102,16 +160,7 @@ impl Function<'_> {
             };
             quote! { #ident: &[f64; #n] }
         });
-        let ret = match self.shape {
-            Shape::Vector(len) => {
-                let len = int(len);
-                quote! { [f64; #len] }
-            }
-            Shape::Matrix(rows, cols) => {
-                let (rows, cols) = (int(rows), int(cols));
-                quote! { [[f64; #cols]; #rows] }
-            }
-        };
+        let ret = self.shape.rust_type();
         let prologue = self.prologue(&used);
         let (lets, names) = self.intermediates();
         let printer = self.printer();
@@ -120,13 +169,7 @@ impl Function<'_> {
             .iter()
             .map(|&r| printer.expr(r, &names))
             .collect();
-        let result = match self.shape {
-            Shape::Vector(_) => quote! { [#(#values),*] },
-            Shape::Matrix(_, cols) => {
-                let rows = values.chunks(cols).map(|row| quote! { [#(#row),*] });
-                quote! { [#(#rows),*] }
-            }
-        };
+        let result = self.shape.value(&values);
         quote! {
             #[doc = #doc]
             #[inline]
@@ -156,9 +199,7 @@ impl Function<'_> {
             }
             match &self.dag.nodes[id] {
                 Node::Input(i) => used[*i] = true,
-                Node::Add(ops) | Node::Mul(ops) => stack.extend(ops),
-                Node::Neg(x) => stack.push(*x),
-                Node::Const(_) | Node::Param(_) => {}
+                node => stack.extend(node.operands()),
             }
         }
         self.inputs
@@ -262,10 +303,7 @@ impl Function<'_> {
         let mut lets = Vec::new();
         for id in self.evaluation_order() {
             let shared = uses[id] > 1;
-            let compound = matches!(
-                self.dag.nodes[id],
-                Node::Add(_) | Node::Mul(_) | Node::Neg(_)
-            );
+            let compound = self.dag.nodes[id].is_compound();
             // Constants are folded by the compiler wherever they appear.
             if shared && compound && !self.dag.is_constant(id) {
                 let expr = self.printer().expr(id, &names);
@@ -288,12 +326,7 @@ impl Function<'_> {
             if std::mem::replace(&mut seen[id], true) {
                 continue;
             }
-            let children: Vec<NodeId> = match &self.dag.nodes[id] {
-                Node::Add(ops) | Node::Mul(ops) => ops.clone(),
-                Node::Neg(x) => vec![*x],
-                _ => vec![],
-            };
-            for c in children {
+            for &c in self.dag.nodes[id].operands() {
                 uses[c] += 1;
                 stack.push(c);
             }
@@ -318,13 +351,8 @@ impl Function<'_> {
                 }
                 state[id] = 1;
                 stack.push((id, true));
-                match &self.dag.nodes[id] {
-                    Node::Add(ops) | Node::Mul(ops) => {
-                        stack.extend(ops.iter().rev().map(|&o| (o, false)))
-                    }
-                    Node::Neg(x) => stack.push((*x, false)),
-                    _ => {}
-                }
+                let operands = self.dag.nodes[id].operands();
+                stack.extend(operands.iter().rev().map(|&o| (o, false)));
             }
         }
         order
@@ -368,6 +396,10 @@ impl Printer<'_> {
             Node::Neg(x) => {
                 let inner = self.factor(*x, names);
                 quote! { -#inner }
+            }
+            Node::Recip(x) => {
+                let inner = self.factor(*x, names);
+                quote! { 1.0 / #inner }
             }
         }
     }
@@ -572,7 +604,7 @@ impl Printer<'_> {
         let needs_parens = !self.is_name(id, names)
             && match &self.dag.nodes[id] {
                 Node::Add(_) => !self.is_postfix(id, names),
-                Node::Neg(_) => true,
+                Node::Neg(_) | Node::Recip(_) => true,
                 Node::Const(c) => *c < 0.0,
                 Node::Mul(ops) => self.negative_lead(ops[0], names, false).is_some(),
                 Node::Input(_) | Node::Param(_) => false,
@@ -607,6 +639,10 @@ pub fn int(value: usize) -> proc_macro2::Literal {
 /// A float literal with an `f64` suffix, parenthesized if negative: a
 /// receiver of a method call (`1.0f64.add_mul(..)`).
 fn typed_literal(value: f64) -> TokenStream {
+    if value.is_infinite() {
+        let inner = literal(value);
+        return quote! { (#inner) };
+    }
     let lit = syn::LitFloat::new(&format!("{:?}f64", value.abs()), Span::call_site());
     if value.is_sign_negative() && value != 0.0 {
         quote! { (-#lit) }
@@ -615,8 +651,13 @@ fn typed_literal(value: f64) -> TokenStream {
     }
 }
 
-/// A float literal with the shortest representation that round-trips.
+/// A float literal with the shortest representation that round-trips
+/// (infinities by name: the reciprocal pivot of a joint that moves nothing).
 pub fn literal(value: f64) -> TokenStream {
+    if value.is_infinite() {
+        let sign = (value < 0.0).then(|| quote! { - });
+        return quote! { #sign f64::INFINITY };
+    }
     let text = format!("{:?}", value.abs());
     let lit = syn::LitFloat::new(&text, Span::call_site());
     if value.is_sign_negative() && value != 0.0 {

@@ -11,6 +11,7 @@ use std::time::Instant;
 use proc_macro2::TokenStream;
 use quote::quote;
 
+use crate::composed;
 use crate::crosscheck;
 use crate::description::{Description, JointKind};
 use crate::emit::{Argument, Function, Input, Shape};
@@ -93,10 +94,14 @@ pub fn generate(
         items.push(function.tokens());
     }
     let constants = listing::constants(description, &traced, &inputs);
+    let composed = composed::items();
     let support = support::items();
+    let kinematic_support = composed::support();
     let file: TokenStream = quote! {
         #constants
         #(#items)*
+        #composed
+        #kinematic_support
         #support
     };
     let syntax = syn::parse2::<syn::File>(file)
@@ -221,6 +226,55 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
             arguments: ALL,
             shape: Shape::Matrix(n, width),
             roots: traced.regressor.clone(),
+        },
+        Spec {
+            name: "bias",
+            doc: " tau at qdd = 0: c(q, qd) + g(q) + effects(qd), N m (forward dynamics solves M qdd = tau - bias).",
+            arguments: Q_QD,
+            shape: Shape::Vector(n),
+            roots: traced.bias.clone(),
+        },
+        Spec {
+            name: "mass_factor",
+            doc: " M(q) = L D L^T as one matrix: L (unit lower triangular) below the diagonal, 1/D on it, zeros above (see `solve_factored`).",
+            arguments: Q,
+            shape: Shape::Matrix(n, n),
+            roots: traced.mass_factor.clone(),
+        },
+        Spec {
+            name: "tau_derivatives",
+            doc: " Exact (d tau / d q, d tau / d qd) at (q, qd, qdd): row i is tau_i, column j is q_j or qd_j (d tau / d qdd is the mass matrix). d sign(qd) / d qd is taken as 0.",
+            arguments: ALL,
+            shape: Shape::Pair(n, n),
+            roots: [traced.tau_by_q.clone(), traced.tau_by_qd.clone()].concat(),
+        },
+        Spec {
+            name: "link_poses",
+            doc: " Every moving link's frame in the base frame (LINK_NAMES order).",
+            arguments: Q,
+            shape: Shape::Poses(traced.link_poses.len() / 12),
+            roots: traced.link_poses.clone(),
+        },
+        Spec {
+            name: "tip_pose",
+            doc: " The tip frame (TIP_LINK's) in the base frame.",
+            arguments: Q,
+            shape: Shape::Pose,
+            roots: traced.link_poses[12 * traced.tip..12 * traced.tip + 12].to_vec(),
+        },
+        Spec {
+            name: "tip_jacobian",
+            doc: " The tip frame's Jacobian: rows 0-2 the linear velocity of its origin, rows 3-5 its angular velocity, both in base axes (Pinocchio's LOCAL_WORLD_ALIGNED); column j is qd_j.",
+            arguments: Q,
+            shape: Shape::Matrix(6, n),
+            roots: traced.tip_jacobian.clone(),
+        },
+        Spec {
+            name: "tip_jacobian_dot_qd",
+            doc: " J-dot qd of `tip_jacobian`: the tip origin's acceleration and the tip's angular acceleration at qdd = 0 (no gravity), base axes.",
+            arguments: Q_QD,
+            shape: Shape::Vector(6),
+            roots: traced.tip_jacobian_dot_qd.clone(),
         },
     ]
 }

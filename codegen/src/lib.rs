@@ -18,9 +18,12 @@ mod states;
 mod validate;
 
 #[cfg(feature = "symbolic")]
+mod composed;
+#[cfg(feature = "symbolic")]
 mod config;
 #[cfg(feature = "symbolic")]
 mod crosscheck;
+pub mod derivative;
 #[cfg(feature = "symbolic")]
 mod emit;
 #[cfg(feature = "symbolic")]

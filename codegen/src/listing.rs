@@ -30,6 +30,9 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
     let joints = dofs
         .iter()
         .map(|&b| Literal::string(&chain.bodies[b].joint));
+    let bodies = int(n);
+    let links = chain.bodies.iter().map(|b| Literal::string(&b.link));
+    let tip = Literal::string(&chain.bodies[traced.tip].link);
     let groups = traced.groups.iter().map(|group| {
         let doc = format!(" {}", group.doc);
         let items = group
@@ -62,6 +65,10 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
         pub const NUM_PARAMETERS: usize = #count;
         /// Names of the moving joints, base first.
         pub const JOINT_NAMES: [&str; #dof] = [#(#joints),*];
+        /// Names of the moving links (the frames of `link_poses`), base first.
+        pub const LINK_NAMES: [&str; #bodies] = [#(#links),*];
+        /// The tip link: the last moving joint's (`tip_pose`, `tip_jacobian`).
+        pub const TIP_LINK: &str = #tip;
         #(#groups)*
         #derived
         /// Parameter values of this description, in regressor column order:

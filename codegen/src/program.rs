@@ -62,6 +62,24 @@ pub enum Node {
     Add(Vec<NodeId>),
     Mul(Vec<NodeId>),
     Neg(NodeId),
+    /// 1 / x: the pivots of a factorized mass matrix.
+    Recip(NodeId),
+}
+
+impl Node {
+    /// The nodes this one is computed from.
+    pub fn operands(&self) -> &[NodeId] {
+        match self {
+            Node::Add(ops) | Node::Mul(ops) => ops,
+            Node::Neg(x) | Node::Recip(x) => std::slice::from_ref(x),
+            Node::Input(_) | Node::Const(_) | Node::Param(_) => &[],
+        }
+    }
+
+    /// Whether the node computes something (not a leaf).
+    pub fn is_compound(&self) -> bool {
+        !self.operands().is_empty()
+    }
 }
 
 pub type NodeId = usize;
@@ -81,6 +99,7 @@ enum Key {
     Add(Vec<NodeId>),
     Mul(Vec<NodeId>),
     Neg(NodeId),
+    Recip(NodeId),
 }
 
 /// A hash-consed expression DAG: equal subexpressions get one node.
@@ -107,6 +126,7 @@ impl Dag {
             Node::Add(a) => Key::Add(a.clone()),
             Node::Mul(m) => Key::Mul(m.clone()),
             Node::Neg(n) => Key::Neg(*n),
+            Node::Recip(n) => Key::Recip(*n),
         };
         if let Some(&id) = self.index.get(&key) {
             return id;
@@ -114,8 +134,7 @@ impl Dag {
         let constant = match &node {
             Node::Input(_) => false,
             Node::Const(_) | Node::Param(_) => true,
-            Node::Add(ops) | Node::Mul(ops) => ops.iter().all(|&o| self.constant[o]),
-            Node::Neg(x) => self.constant[*x],
+            compound => compound.operands().iter().all(|&o| self.constant[o]),
         };
         self.nodes.push(node);
         self.constant.push(constant);
@@ -149,10 +168,19 @@ impl Dag {
         self.intern(Node::Param(index))
     }
 
+    /// `1 / a`, folding literals and double reciprocals.
+    pub fn reciprocal(&mut self, a: NodeId) -> NodeId {
+        match self.nodes[a] {
+            Node::Const(c) => self.constant(1.0 / c),
+            Node::Recip(x) => x,
+            _ => self.intern(Node::Recip(a)),
+        }
+    }
+
     /// Names a compound constant node (a derived constant); leaves and
     /// nodes already named keep their name.
     pub fn name(&mut self, id: NodeId, name: &str) -> NodeId {
-        let compound = matches!(self.nodes[id], Node::Add(_) | Node::Mul(_) | Node::Neg(_));
+        let compound = self.nodes[id].is_compound();
         if self.constant[id] && compound && !self.derived_names.contains_key(&id) {
             self.derived_names.insert(id, self.derived.len());
             self.derived.push((name.to_string(), id));
@@ -165,6 +193,11 @@ impl Dag {
         self.derived_names
             .get(&id)
             .map(|&k| self.derived[k].0.as_str())
+    }
+
+    /// Whether `id` is the literal 0.
+    pub fn is_literal_zero(&self, id: NodeId) -> bool {
+        self.constant_value(id) == Some(0.0)
     }
 
     /// Whether `id` depends on constants only (folded at compile time).
@@ -248,6 +281,7 @@ impl Dag {
                 Node::Add(ops) => ops.iter().map(|&o| values[o]).sum(),
                 Node::Mul(ops) => ops.iter().map(|&o| values[o]).product(),
                 Node::Neg(n) => -values[*n],
+                Node::Recip(n) => 1.0 / values[*n],
             };
             values.push(v);
         }
@@ -262,7 +296,7 @@ impl Dag {
             .filter(|&id| reachable[id] && !self.constant[id])
             .map(|id| match &self.nodes[id] {
                 Node::Add(ops) | Node::Mul(ops) => ops.len() - 1,
-                Node::Neg(_) => 1,
+                Node::Neg(_) | Node::Recip(_) => 1,
                 _ => 0,
             })
             .sum()
@@ -279,7 +313,7 @@ impl Dag {
         for id in (0..self.nodes.len()).filter(|&id| reachable[id]) {
             match &self.nodes[id] {
                 Node::Mul(ops) => ops.iter().for_each(|&o| free[o] = false),
-                Node::Neg(x) => free[*x] = false,
+                Node::Neg(x) | Node::Recip(x) => free[*x] = false,
                 _ => {}
             }
         }
@@ -302,11 +336,7 @@ impl Dag {
             if std::mem::replace(&mut seen[id], true) {
                 continue;
             }
-            match &self.nodes[id] {
-                Node::Add(ops) | Node::Mul(ops) => stack.extend(ops),
-                Node::Neg(n) => stack.push(*n),
-                Node::Input(_) | Node::Const(_) | Node::Param(_) => {}
-            }
+            stack.extend(self.nodes[id].operands());
         }
         seen
     }

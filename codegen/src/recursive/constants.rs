@@ -55,6 +55,10 @@ pub struct JointLeaves {
     pub effects: [NodeId; EFFECTS_PER_JOINT],
     /// The spring's rest angle.
     pub spring_rest: NodeId,
+    /// The Stribeck velocity and the ripple's cycles (inputs' constants,
+    /// used by the derivatives).
+    pub stribeck_velocity: NodeId,
+    pub ripple_cycles: NodeId,
     /// A coupled joint's multiplier and offset (1 and 0 otherwise).
     pub coupling: [NodeId; 2],
 }
@@ -166,10 +170,10 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         )
     });
     let spring_rest = named(dag, format!("JOINT{i}_SPRING_REST"), e.spring_rest, false);
-    // Used by the generated prologue (the Stribeck and ripple inputs), not
-    // in the programs.
-    named(dag, stribeck_velocity(i), e.stribeck_velocity, false);
-    named(dag, ripple_cycles(i), e.ripple_cycles, false);
+    // Used by the generated prologue (the Stribeck and ripple inputs) and
+    // by the derivatives.
+    let stribeck_velocity = named(dag, stribeck_velocity(i), e.stribeck_velocity, false);
+    let ripple_cycles = named(dag, ripple_cycles(i), e.ripple_cycles, false);
     let coupling = match &body.coupling {
         Some(c) => [
             named(
@@ -208,6 +212,8 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
         axis,
         effects,
         spring_rest,
+        stribeck_velocity,
+        ripple_cycles,
         coupling,
     };
     (Group { doc, items }, leaves)

@@ -1,8 +1,6 @@
-//! The mass matrix and the regressor from the joint twists in body axes:
-//! M = sum_k J_k^T M_k J_k and Y_ik = J_ik^T W_k.
+//! The regressor from the joint twists in body axes: Y_ik = J_ik^T W_k.
 
 use super::newton_euler::{Motion, Rotation};
-use super::regroup::BodyParameters;
 use super::{QD, QDD, RIPPLE_COS, RIPPLE_SIN, SIGN, STRIBECK, Tracer, V3};
 use crate::program::NodeId;
 use crate::schema::{EFFECTS_PER_JOINT, PARAMETERS_PER_JOINT};
@@ -39,50 +37,6 @@ impl Tracer<'_> {
             twists.push(row);
         }
         twists
-    }
-
-    /// M_ij = sum over bodies k moved by joints i and j of
-    /// twist_ik . (momentum of twist_jk).
-    pub(super) fn mass_matrix(&mut self, twists: &[Vec<Option<(V3, V3)>>]) -> Vec<NodeId> {
-        let n = twists.len();
-        let mut momenta: Vec<Vec<Option<(V3, V3)>>> = Vec::with_capacity(n);
-        for (k, row) in twists.iter().enumerate() {
-            let BodyParameters { m, h, inertia } = self.parameters[k];
-            let per_joint = row
-                .iter()
-                .map(|twist| {
-                    let (w, v) = (*twist)?;
-                    let mv = self.scale(v, m);
-                    let wxh = self.cross(w, h);
-                    let iw = self.mat_vec(&inertia, w);
-                    let hxv = self.cross(h, v);
-                    Some((self.add(mv, wxh), self.add(iw, hxv)))
-                })
-                .collect();
-            momenta.push(per_joint);
-        }
-        let mut mass = vec![0; n * n];
-        for i in 0..n {
-            for j in i..n {
-                let terms: Vec<NodeId> = (j..n)
-                    .filter_map(|k| {
-                        let (w, v) = twists[k][i]?;
-                        let (linear, angular) = momenta[k][j]?;
-                        let a = self.dot(v, linear);
-                        let b = self.dot(w, angular);
-                        Some(self.dag.sum2(a, b))
-                    })
-                    .collect();
-                let mut entry = self.sum(&terms);
-                if i == j {
-                    let armature = self.joint(i).effects[0];
-                    entry = self.dag.sum2(entry, armature);
-                }
-                mass[i * n + j] = entry;
-                mass[j * n + i] = entry;
-            }
-        }
-        mass
     }
 
     /// Rigid-body columns from the body wrenches per unit parameter, then the

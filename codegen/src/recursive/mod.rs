@@ -17,12 +17,18 @@
 //! shape does not depend on the values and an edit of one number changes
 //! one line of the generated file.
 
+mod composite;
 mod constants;
+mod factor;
 mod jacobian;
+mod kinematics;
 mod newton_euler;
 mod regroup;
+mod sensitivity;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_motion;
 
 pub use constants::{Definition, Group, SNAP, ripple_cycles, stribeck_velocity};
 
@@ -65,6 +71,21 @@ pub struct Traced {
     /// dof x 19 bodies: ten inertial columns per moving body, then nine
     /// effect columns per moving body.
     pub regressor: Vec<NodeId>,
+    /// tau at qdd = 0: c + g + effects.
+    pub bias: Vec<NodeId>,
+    /// M = L D L^T: L below the diagonal, 1/D on it (`factor.rs`).
+    pub mass_factor: Vec<NodeId>,
+    /// d tau / d q and d tau / d qd, dof x dof.
+    pub tau_by_q: Vec<NodeId>,
+    pub tau_by_qd: Vec<NodeId>,
+    /// Per moving body its frame in the base frame: rotation row-major,
+    /// then position (12 each).
+    pub link_poses: Vec<NodeId>,
+    /// The tip body (the last degree of freedom's).
+    pub tip: usize,
+    /// The tip's Jacobian (6 x dof) and J-dot qd (6).
+    pub tip_jacobian: Vec<NodeId>,
+    pub tip_jacobian_dot_qd: Vec<NodeId>,
 }
 
 /// Traces every function of `chain`.
@@ -121,6 +142,20 @@ pub fn trace(chain: &Chain) -> Traced {
         })
         .collect();
     let tau = t.project(&joint_torques, 1);
+    let (tau_by_q, tau_by_qd) = t.tau_derivatives(&tau);
+    let coasting = t.forward(&rotations, &no_acceleration, base_acceleration);
+    let bias: Vec<NodeId> = t
+        .backward(&rotations, &coasting)
+        .into_iter()
+        .enumerate()
+        .map(|(b, rigid)| {
+            let effects = t.effects(b, false);
+            let position = t.position_torque(b);
+            let with_effects = t.dag.sum2(rigid, effects);
+            t.dag.sum2(with_effects, position)
+        })
+        .collect();
+    let bias = t.project(&bias, 1);
     let rest = t.forward(&rotations, &at_rest, base_acceleration);
     let at_rest: Vec<NodeId> = t
         .backward(&rotations, &rest)
@@ -138,10 +173,16 @@ pub fn trace(chain: &Chain) -> Traced {
     let effects: Vec<NodeId> = (0..n).map(|b| t.effects(b, false)).collect();
     let effects = t.project(&effects, 1);
     let twists = t.twists(&rotations);
-    let mass_matrix = t.mass_matrix(&twists);
+    let mass_matrix = t.composite_mass_matrix(&rotations);
     let mass_matrix = t.project_both(&mass_matrix);
     let regressor = t.regressor(&twists, &motions);
     let regressor = t.project_regressor(&regressor);
+    let mass_factor = factor::ldlt(&mut t.dag, &mass_matrix, chain.dof());
+    let placements = t.placements(&rotations);
+    let link_poses = placements.iter().flat_map(|p| p.entries()).collect();
+    let tip = *chain.dof_bodies().last().expect("a chain moves");
+    let tip_jacobian = t.jacobian(&placements, tip);
+    let tip_jacobian_dot_qd = t.jacobian_drift(&placements, &moving, tip);
     Traced {
         dag: t.dag,
         groups: t.leaves.groups,
@@ -151,6 +192,14 @@ pub fn trace(chain: &Chain) -> Traced {
         coriolis,
         effects,
         regressor,
+        bias,
+        mass_factor,
+        tau_by_q,
+        tau_by_qd,
+        link_poses,
+        tip,
+        tip_jacobian,
+        tip_jacobian_dot_qd,
     }
 }
 

@@ -11,6 +11,13 @@ use crate::schema::JointKind;
 /// A joint rotation as a product of stages (rows each), parent-most first.
 pub struct Rotation(Vec<[V3; 3]>);
 
+impl Rotation {
+    /// The stages' rows, parent-most first: R = stages[0] stages[1] ...
+    pub fn stages(&self) -> &[[V3; 3]] {
+        &self.0
+    }
+}
+
 /// Motion of one body frame, in its own axes.
 #[derive(Clone, Copy)]
 pub struct Motion {
@@ -105,7 +112,7 @@ impl Tracer<'_> {
     }
 
     /// R v: from the body's axes into the parent's.
-    fn in_parent_axes(&mut self, rotation: &Rotation, v: V3) -> V3 {
+    pub(super) fn in_parent_axes(&mut self, rotation: &Rotation, v: V3) -> V3 {
         rotation
             .0
             .iter()
@@ -270,13 +277,9 @@ impl Tracer<'_> {
             let children = (i + 1..n).filter(|&c| self.chain.bodies[c].parent == Some(i));
             for c in children.collect::<Vec<_>>() {
                 let (f, m) = total[n - 1 - c];
-                let f = self.in_parent_axes(&rotations[c], f);
-                let m = self.in_parent_axes(&rotations[c], m);
-                let p = self.origin(c);
-                let lever = self.cross(p, f);
+                let (f, m) = self.wrench_in_parent_frame(c, &rotations[c], f, m);
                 force = self.add(force, f);
                 moment = self.add(moment, m);
-                moment = self.add(moment, lever);
             }
             let z = self.joint(i).axis;
             let along = if self.prismatic(i) { force } else { moment };

@@ -114,26 +114,41 @@ impl Tracer<'_> {
         let moment = self.scale(zp, along);
         let ring = self.ring(zp);
         let about_p = self.mat_scale(&ring, b);
-        // m (|p|^2 1 - p p^T) + 2 (p . moment) 1 - p moment^T - moment p^T.
+        self.translated(
+            BodyParameters {
+                m,
+                h: moment,
+                inertia: about_p,
+            },
+            p,
+        )
+    }
+
+    /// A body's parameters given in axes parallel to the parent's, about a
+    /// point at `p` in the parent frame, moved to the parent's origin:
+    /// h + m p and the parallel-axis terms
+    /// m (|p|^2 1 - p p^T) + 2 (p . h) 1 - p h^T - h p^T.
+    pub(super) fn translated(&mut self, body: BodyParameters, p: V3) -> BodyParameters {
+        let BodyParameters { m, h, inertia } = body;
         let p2 = self.dot(p, p);
         let p2_one = self.diagonal(p2);
         let pp = self.outer(p, p);
         let point = self.mat_subtract(&p2_one, &pp);
         let point = self.mat_scale(&point, m);
         let two = self.dag.constant(2.0);
-        let pm = self.dot(p, moment);
-        let pm2 = self.dag.product2(two, pm);
-        let cross_terms = self.diagonal(pm2);
-        let p_moment = self.outer(p, moment);
-        let moment_p = self.outer(moment, p);
-        let inertia = self.mat_add(&about_p, &point);
+        let ph = self.dot(p, h);
+        let ph2 = self.dag.product2(two, ph);
+        let cross_terms = self.diagonal(ph2);
+        let p_h = self.outer(p, h);
+        let h_p = self.outer(h, p);
+        let inertia = self.mat_add(&inertia, &point);
         let inertia = self.mat_add(&inertia, &cross_terms);
-        let inertia = self.mat_subtract(&inertia, &p_moment);
-        let inertia = self.mat_subtract(&inertia, &moment_p);
+        let inertia = self.mat_subtract(&inertia, &p_h);
+        let inertia = self.mat_subtract(&inertia, &h_p);
         let mp = self.scale(p, m);
         BodyParameters {
             m,
-            h: self.add(mp, moment),
+            h: self.add(mp, h),
             inertia,
         }
     }

@@ -5,7 +5,7 @@ use crate::description::Description;
 use crate::states::uniform;
 use std::path::Path;
 
-const PLANAR: &str = r#"
+pub(super) const PLANAR: &str = r#"
     gravity = [0.0, -9.81, 0.0]
     [[links]]
     name = "base"
@@ -300,7 +300,7 @@ fn lift_arm_matches_the_numeric_reference() {
 
 /// Prismatic joints first, between and last, along tilted axes, behind
 /// tilted frames, with every effect.
-const SLIDERS: &str = r#"
+pub(super) const SLIDERS: &str = r#"
     gravity = [0.3, -1.2, -9.7]
     [[links]]
     name = "base"
