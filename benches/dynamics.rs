@@ -83,5 +83,73 @@ fn six_and_seven_joints(c: &mut Criterion) {
     tau_against_rnea(c, "panda", sdnn::models::panda::tau);
 }
 
-criterion_group!(benches, kinova_3dof, six_and_seven_joints);
+/// 4,096 random Panda states (uniform in +-pi, +-3 rad/s, +-10 rad/s^2 and
+/// +-20 N m), as the Pinocchio figures in docs/generated-code.md use.
+fn panda_states() -> Vec<[[f64; 7]; 4]> {
+    let mut seed = 5u64;
+    let mut draw = |scale: f64| {
+        std::array::from_fn(|_| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            scale * ((seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0)
+        })
+    };
+    (0..4096)
+        .map(|_| {
+            [
+                draw(std::f64::consts::PI),
+                draw(3.0),
+                draw(10.0),
+                draw(20.0),
+            ]
+        })
+        .collect()
+}
+
+/// Every generated function of the Panda on the same 4,096 states, per
+/// call (criterion reports the time of the whole set: divide by 4,096),
+/// beside the oracle's RNEA and CRBA.
+fn panda_functions(c: &mut Criterion) {
+    use sdnn::models::panda as arm;
+    let states = panda_states();
+    let model = oracle_model("panda");
+    let mut group = c.benchmark_group("panda x4096");
+    group.throughput(criterion::Throughput::Elements(states.len() as u64));
+    macro_rules! each {
+        ($name:literal, |$q:ident, $qd:ident, $qdd:ident, $tau:ident| $call:expr) => {
+            group.bench_function($name, |b| {
+                b.iter(|| {
+                    for [$q, $qd, $qdd, $tau] in black_box(&states) {
+                        black_box($call);
+                    }
+                })
+            });
+        };
+    }
+    each!("generated tau", |q, qd, qdd, _tau| arm::tau(q, qd, qdd));
+    each!("generated mass_matrix", |q, _qd, _qdd, _tau| {
+        arm::mass_matrix(q)
+    });
+    each!("generated forward_dynamics", |q, qd, _qdd, tau| {
+        arm::forward_dynamics(q, qd, tau)
+    });
+    each!("generated tau_derivatives", |q, qd, qdd, _tau| {
+        arm::tau_derivatives(q, qd, qdd)
+    });
+    each!(
+        "generated forward_dynamics_derivatives",
+        |q, qd, _qdd, tau| { arm::forward_dynamics_derivatives(q, qd, tau) }
+    );
+    each!("generated tip_pose + tip_jacobian", |q, _qd, _qdd, _tau| {
+        (arm::tip_pose(q), arm::tip_jacobian(q))
+    });
+    each!("oracle rnea", |q, qd, qdd, _tau| oracle::rnea(
+        &model, q, qd, qdd
+    ));
+    each!("oracle crba", |q, _qd, _qdd, _tau| oracle::crba(&model, q));
+    group.finish();
+}
+
+criterion_group!(benches, kinova_3dof, six_and_seven_joints, panda_functions);
 criterion_main!(benches);

@@ -2,16 +2,11 @@
 //! library modules below return typed errors.
 
 use std::ffi::OsString;
-use std::io::Write;
-use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Parser, Subcommand};
-use nalgebra::DMatrix;
 
 pub use crate::args::{AngleArg, Format, find_model, model_path};
-
-use crate::trajectory::{ReadOptions, read_states_csv, write_torques, write_torques_csv};
 
 /// Exact arm dynamics, physics-synthesized data and model diagnosis.
 #[derive(Debug, Parser)]
@@ -23,29 +18,15 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Evaluate a compiled model's joint torques on states
-    /// (columns q1..qN,qd1..qdN,qdd1..qddN; output tau1..tauN).
-    Tau {
-        /// Model name (a models/*.toml file stem); see `sdnn models`.
-        #[arg(long)]
-        model: String,
-        /// State file (`-`: standard input); a recording's `t` and `tau`
-        /// columns are allowed and not used.
-        #[arg(long)]
-        input: PathBuf,
-        /// Torque file to write; standard output if absent or `-`.
-        #[arg(long)]
-        output: Option<PathBuf>,
-        /// Unit of q, qd and qdd in the input.
-        #[arg(long, value_enum, default_value_t)]
-        angles: AngleArg,
-        /// Map a file column to a contract column, e.g. `--column pos1=q1`.
-        #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = crate::inputs::parse_mapping)]
-        columns: Vec<(String, String)>,
-        /// File columns to ignore (extra columns are an error otherwise).
-        #[arg(long = "ignore-column", value_name = "NAME")]
-        ignored: Vec<String>,
-    },
+    /// Joint torques of a model on states (inverse dynamics): columns
+    /// q1..qN,qd1..qdN,qdd1..qddN; output tau1..tauN.
+    Tau(crate::commands::PointwiseArgs),
+    /// Joint accelerations of a model under torques (forward dynamics):
+    /// columns q1..qN,qd1..qdN,tau1..tauN; output qdd1..qddN.
+    Qdd(crate::commands::PointwiseArgs),
+    /// The tip frame of a model at joint positions (forward kinematics):
+    /// columns q1..qN; output x,y,z (m) and the rotation r11..r33.
+    Pose(crate::commands::PointwiseArgs),
     /// List the compiled models.
     Models {
         #[arg(long, value_enum, default_value_t)]
@@ -92,24 +73,9 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         }
     };
     match cli.command {
-        Command::Tau {
-            model,
-            input,
-            output,
-            angles,
-            columns,
-            ignored,
-        } => {
-            let options = ReadOptions {
-                units: angles.into(),
-                min_samples: 1,
-                renames: columns.into_iter().collect(),
-                ignored,
-                ..ReadOptions::default()
-            };
-            let output = output.filter(|p| p != std::path::Path::new("-"));
-            tau(&model, &input, output.as_deref(), options)
-        }
+        Command::Tau(args) => crate::commands::tau(&args),
+        Command::Qdd(args) => crate::commands::qdd(&args),
+        Command::Pose(args) => crate::commands::pose(&args),
         Command::Models { format } => models(format),
         Command::Reproduce(args) => crate::commands::reproduce(&args),
         Command::Study(args) => crate::commands::study_command(&args),
@@ -123,36 +89,6 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         Command::ImportUrdf(args) => crate::imports::import_urdf_command(&args),
         Command::ImportLog(args) => crate::imports::import_log_command(&args),
     }
-}
-
-fn tau(
-    name: &str,
-    input: &std::path::Path,
-    output: Option<&std::path::Path>,
-    options: ReadOptions,
-) -> Result<()> {
-    let model = find_model(name)?;
-    crate::args::check_angle_units(model, options.units)?;
-    let options = ReadOptions {
-        dof: Some(model.dof()),
-        ..options
-    };
-    let states = read_states_csv(input, &options)?;
-    let mut tau = DMatrix::zeros(states.len(), model.dof());
-    for r in 0..states.len() {
-        let row = |m: &DMatrix<f64>| m.row(r).iter().copied().collect::<Vec<f64>>();
-        let t = model.tau(&row(states.q()), &row(states.qd()), &row(states.qdd()))?;
-        tau.set_row(r, &t.transpose());
-    }
-    match output {
-        Some(path) => write_torques_csv(path, &tau)?,
-        None => {
-            let mut out = std::io::stdout().lock();
-            write_torques(&mut out, &tau).context("writing to standard output")?;
-            out.flush().context("writing to standard output")?;
-        }
-    }
-    Ok(())
 }
 
 fn models(format: Format) -> Result<()> {

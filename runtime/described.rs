@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use nalgebra::{DMatrix, DVector};
 
-use crate::dynamics::{DimensionError, Dynamics};
+use crate::dynamics::{DimensionError, Dynamics, Placement};
 use crate::oracle::{self, Model};
 
 /// A description file's model. Its names live as long as the process (one
@@ -135,6 +135,31 @@ impl Dynamics for Described {
         self.check("qd", qd)?;
         self.check("qdd", qdd)?;
         Ok(oracle::regressor(&self.model, q, qd, qdd))
+    }
+    fn forward_dynamics(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), DimensionError> {
+        self.check("q", q)?;
+        self.check("qd", qd)?;
+        self.check("tau", tau)?;
+        self.check("qdd", qdd)?;
+        match oracle::forward_dynamics(&self.model, q, qd, tau) {
+            Some(solved) => qdd.copy_from_slice(solved.as_slice()),
+            None => qdd.fill(f64::NAN),
+        }
+        Ok(())
+    }
+    fn tip_pose(&self, q: &[f64]) -> Result<Placement, DimensionError> {
+        self.check("q", q)?;
+        let (r, p) = oracle::placements(&self.model, q)[oracle::tip(&self.model)];
+        Ok(Placement {
+            rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])),
+            position: [p.x, p.y, p.z],
+        })
     }
 }
 

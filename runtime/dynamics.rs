@@ -44,6 +44,41 @@ pub trait Dynamics: Sync {
     /// Y(q, qd, qdd) with tau = Y * parameters.
     fn regressor(&self, q: &[f64], qd: &[f64], qdd: &[f64])
     -> Result<DMatrix<f64>, DimensionError>;
+    /// Forward dynamics qdd = M(q)^-1 (tau - c - g - effects), written into
+    /// `qdd` (no allocation for a compiled model). A joint that moves no
+    /// mass and has no armature makes M singular: non-finite values.
+    fn forward_dynamics(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), DimensionError>;
+    /// The tip frame (the last moving joint's link) in the base frame.
+    fn tip_pose(&self, q: &[f64]) -> Result<Placement, DimensionError>;
+}
+
+/// A frame in the base frame: `rotation` takes its coordinates to the
+/// base's, `position` is its origin (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    pub rotation: [[f64; 3]; 3],
+    pub position: [f64; 3],
+}
+
+/// Checks an output slice's length like an input's.
+pub fn fixed_mut<'a, const N: usize>(
+    model: &'static str,
+    argument: &'static str,
+    values: &'a mut [f64],
+) -> Result<&'a mut [f64; N], DimensionError> {
+    let found = values.len();
+    values.try_into().map_err(|_| DimensionError {
+        model,
+        argument,
+        expected: N,
+        found,
+    })
 }
 
 /// Borrows a slice as a fixed-size array or says which argument is off.
@@ -154,6 +189,31 @@ macro_rules! compiled_model {
                 Ok(nalgebra::DMatrix::from_fn(DOF, NUM_PARAMETERS, |r, c| {
                     y[r][c]
                 }))
+            }
+            fn forward_dynamics(
+                &self,
+                q: &[f64],
+                qd: &[f64],
+                tau: &[f64],
+                qdd: &mut [f64],
+            ) -> Result<(), $crate::dynamics::DimensionError> {
+                use $crate::dynamics::{fixed, fixed_mut};
+                *fixed_mut::<DOF>($name, "qdd", qdd)? = forward_dynamics(
+                    fixed::<DOF>($name, "q", q)?,
+                    fixed::<DOF>($name, "qd", qd)?,
+                    fixed::<DOF>($name, "tau", tau)?,
+                );
+                Ok(())
+            }
+            fn tip_pose(
+                &self,
+                q: &[f64],
+            ) -> Result<$crate::dynamics::Placement, $crate::dynamics::DimensionError> {
+                let pose = tip_pose($crate::dynamics::fixed::<DOF>($name, "q", q)?);
+                Ok($crate::dynamics::Placement {
+                    rotation: pose.rotation,
+                    position: pose.position,
+                })
             }
         }
     };

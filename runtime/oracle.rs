@@ -303,6 +303,38 @@ fn rigid_body_torque(
     tau
 }
 
+/// Every moving body's frame in the base frame (rotation, origin).
+pub fn placements(model: &Model, q: &[f64]) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
+    let zero = vec![0.0; q.len()];
+    let mut out: Vec<(Matrix3<f64>, Vector3<f64>)> = Vec::with_capacity(model.bodies.len());
+    for body in &model.bodies {
+        let (x, _, _) = body.state(q, &zero, &zero);
+        let (r, p) = body.placement(x);
+        let (r0, p0) = body
+            .parent
+            .map_or((Matrix3::identity(), Vector3::zeros()), |k| out[k]);
+        out.push((r0 * r, p0 + r0 * p));
+    }
+    out
+}
+
+/// The tip body: the last degree of freedom's (the generated `TIP_LINK`).
+pub fn tip(model: &Model) -> usize {
+    model
+        .bodies
+        .iter()
+        .rposition(|b| !b.coupled)
+        .unwrap_or(model.bodies.len().saturating_sub(1))
+}
+
+/// qdd = M^-1 (tau - bias) by Cholesky; `None` when M is not positive
+/// definite (a joint that moves no mass and has no armature).
+pub fn forward_dynamics(model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) -> Option<DVector<f64>> {
+    let bias = rnea(model, q, qd, &vec![0.0; q.len()]);
+    let rhs = DVector::from_column_slice(tau) - bias;
+    crba(model, q).cholesky().map(|c| c.solve(&rhs))
+}
+
 impl OracleBody {
     /// The body's joint position, velocity and acceleration from the
     /// degrees of freedom's.

@@ -398,8 +398,14 @@ impl Printer<'_> {
                 quote! { -#inner }
             }
             Node::Recip(x) => {
-                let inner = self.factor(*x, names);
-                quote! { 1.0 / #inner }
+                // A divisor in parentheses unless it is one name: `1 / a * b`
+                // would read as b / a.
+                let inner = self.expr(*x, names);
+                if self.is_name(*x, names) {
+                    quote! { 1.0 / #inner }
+                } else {
+                    quote! { 1.0 / (#inner) }
+                }
             }
         }
     }
@@ -700,6 +706,17 @@ mod tests {
             code.contains("qd1 . sub_mul (2.5 , qd2) . add_mul (qd3 , qd4)"),
             "{code}"
         );
+    }
+
+    #[test]
+    fn a_reciprocal_of_a_product_keeps_its_parentheses() {
+        let mut dag = Dag::default();
+        let x: Vec<NodeId> = (0..4).map(|i| dag.input(i)).collect();
+        let product = dag.product2(x[0], x[1]);
+        let inverse = dag.reciprocal(product);
+        let root = dag.product2(inverse, x[2]);
+        let code = emitted(&dag, root);
+        assert!(code.contains("1.0 / (qd1 * qd2)"), "{code}");
     }
 
     #[test]

@@ -23,9 +23,11 @@ use crate::trajectory::{
 };
 
 mod diagnosis;
+mod pointwise;
 mod reproduction;
 
 pub use diagnosis::{DiagnoseArgs, diagnose};
+pub use pointwise::{PointwiseArgs, pose, qdd, tau};
 pub use reproduction::{
     ReproduceArgs, Situation, StudyArgs, StudyRunArgs, reproduce, study_command,
 };

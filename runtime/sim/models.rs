@@ -2,7 +2,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::plant::Plant;
+use super::plant::{DynamicsError, Plant};
 use crate::dynamics::Dynamics;
 use crate::oracle::{self, Model};
 
@@ -31,6 +31,28 @@ impl Plant for Compiled<'_> {
         match parts {
             (Ok(c), Ok(g), Ok(e)) => c + g + e,
             _ => DVector::from_element(n, f64::NAN),
+        }
+    }
+
+    /// The model's generated forward dynamics: no matrix is allocated.
+    fn accelerations(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        self.0
+            .forward_dynamics(q, qd, tau, qdd)
+            .map_err(|e| DynamicsError::Dimension {
+                what: e.argument,
+                dof: e.expected,
+                found: e.found,
+            })?;
+        if qdd.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(DynamicsError::NotPositiveDefinite { q: q.to_vec() })
         }
     }
 }

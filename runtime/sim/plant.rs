@@ -36,11 +36,25 @@ pub trait Plant {
     fn mass_matrix(&self, q: &[f64]) -> DMatrix<f64>;
     /// c(q, qd) + g(q) + effects(qd): every torque term except M qdd.
     fn bias(&self, q: &[f64], qd: &[f64]) -> DVector<f64>;
+    /// qdd = M(q)^-1 (tau - bias(q, qd)) into `qdd` (slices of the plant's
+    /// length). By default a Cholesky solve of `mass_matrix` and `bias`;
+    /// a plant with its own forward dynamics (a compiled model) overrides
+    /// it.
+    fn accelerations(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        let solved = solve_by_cholesky(self, q, qd, tau)?;
+        qdd.copy_from_slice(solved.as_slice());
+        Ok(())
+    }
 }
 
-/// Joint accelerations qdd = M(q)^-1 (tau - bias(q, qd)), solved by Cholesky.
-///
-/// Only the lower triangle of M is read, so an asymmetric M is not detected.
+/// Joint accelerations qdd = M(q)^-1 (tau - bias(q, qd)), by the plant's
+/// own forward dynamics.
 pub fn forward_dynamics(
     plant: &dyn Plant,
     q: &[f64],
@@ -51,7 +65,24 @@ pub fn forward_dynamics(
     check_len("q", q, dof)?;
     check_len("qd", qd, dof)?;
     check_len("tau", tau, dof)?;
-    let (m, bias) = evaluate(plant, q, qd)?;
+    let mut qdd = DVector::zeros(dof);
+    plant.accelerations(q, qd, tau, qdd.as_mut_slice())?;
+    Ok(qdd)
+}
+
+/// qdd by a Cholesky solve of M and the bias. Only the lower triangle of M
+/// is read, so an asymmetric M is not detected.
+pub fn solve_by_cholesky<P: Plant + ?Sized>(
+    plant: &P,
+    q: &[f64],
+    qd: &[f64],
+    tau: &[f64],
+) -> Result<DVector<f64>, DynamicsError> {
+    let dof = plant.dof();
+    let m = plant.mass_matrix(q);
+    check_shape("mass matrix", m.shape(), dof, dof)?;
+    let bias = plant.bias(q, qd);
+    check_shape("bias", bias.shape(), dof, 1)?;
     let chol = m
         .cholesky()
         .ok_or_else(|| DynamicsError::NotPositiveDefinite { q: q.to_vec() })?;

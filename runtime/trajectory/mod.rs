@@ -21,7 +21,10 @@ mod read;
 mod sampling;
 
 use read::*;
-pub use read::{is_contract_column, read_csv, read_states_csv, read_torques_csv};
+pub use read::{
+    is_contract_column, read_csv, read_forward_csv, read_positions_csv, read_states_csv,
+    read_torques_csv,
+};
 use sampling::*;
 pub use sampling::{resample, uniform};
 
@@ -480,6 +483,28 @@ fn write_blocks(
         })
         .collect();
     atomic_write(path, |w| write_table(w, &header, blocks))
+}
+
+/// Writes a table with the given header: to `path` atomically, or to
+/// standard output when `path` is `None`.
+pub fn write_columns(
+    path: Option<&Path>,
+    header: &[String],
+    values: &DMatrix<f64>,
+) -> Result<(), TrajectoryError> {
+    let blocks = [(None, values)];
+    match path {
+        Some(path) => atomic_write(path, |w| write_table(w, header, &blocks)),
+        None => {
+            let mut out = io::stdout().lock();
+            write_table(&mut out, header, &blocks)
+                .and_then(|()| out.flush())
+                .map_err(|source| TrajectoryError::Io {
+                    path: "standard output".into(),
+                    source,
+                })
+        }
+    }
 }
 
 /// Writes a torque table (`tau1..tauN`) to any writer, e.g. standard output.

@@ -81,6 +81,31 @@ pub(super) const STATES_SCHEMA: Schema = Schema {
     expected: "q1..qN, qd1..qdN, qdd1..qddN",
 };
 
+/// States and torques for `sdnn qdd`: a recording's `t` and `qdd`
+/// columns may be present (read and not used).
+pub(super) const FORWARD_SCHEMA: Schema = Schema {
+    time: Presence::Optional,
+    channels: [
+        Presence::Required,
+        Presence::Required,
+        Presence::Optional,
+        Presence::Required,
+    ],
+    expected: "q1..qN, qd1..qdN, tau1..tauN",
+};
+
+/// Positions for `sdnn pose`: any other contract column may be present.
+pub(super) const POSITIONS_SCHEMA: Schema = Schema {
+    time: Presence::Optional,
+    channels: [
+        Presence::Required,
+        Presence::Optional,
+        Presence::Optional,
+        Presence::Optional,
+    ],
+    expected: "q1..qN",
+};
+
 pub(super) const TORQUES_SCHEMA: Schema = Schema {
     time: Presence::Forbidden,
     channels: [
@@ -445,6 +470,28 @@ pub fn read_states_csv(
         table.required(Channel::Qd, opts.units),
         table.required(Channel::Qdd, opts.units),
     )
+}
+
+/// Reads (q, qd, tau), samples x joints, for forward dynamics.
+pub fn read_forward_csv(
+    path: impl AsRef<Path>,
+    opts: &ReadOptions,
+) -> Result<[DMatrix<f64>; 3], TrajectoryError> {
+    let path = path.as_ref();
+    no_resample(path, opts)?;
+    let table = read_table(path, opts, &FORWARD_SCHEMA)?;
+    Ok([Channel::Q, Channel::Qd, Channel::Tau].map(|ch| table.required(ch, opts.units)))
+}
+
+/// Reads joint positions (`q1..qN`), samples x joints.
+pub fn read_positions_csv(
+    path: impl AsRef<Path>,
+    opts: &ReadOptions,
+) -> Result<DMatrix<f64>, TrajectoryError> {
+    let path = path.as_ref();
+    no_resample(path, opts)?;
+    let table = read_table(path, opts, &POSITIONS_SCHEMA)?;
+    Ok(table.required(Channel::Q, opts.units))
 }
 
 /// Reads a torque file (`tau1..tauN`) as samples x joints.

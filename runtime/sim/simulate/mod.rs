@@ -300,6 +300,7 @@ pub fn simulate(
     let mut log = Log::new(steps + 1, dof);
     let (mut q, mut qd, _) = reference.sample(0.0);
     let h = config.control_dt / config.substeps as f64;
+    let mut rk4 = Rk4::new(dof);
     check_state(0.0, &q, &qd, config.divergence_velocity)?;
     for k in 0..=steps {
         let t = k as f64 * config.control_dt;
@@ -321,7 +322,13 @@ pub fn simulate(
         );
         if k < steps {
             for _ in 0..config.substeps {
-                (q, qd) = rk4_step(plant, &q, &qd, &tau, h)?;
+                rk4.step(
+                    plant,
+                    q.as_mut_slice(),
+                    qd.as_mut_slice(),
+                    tau.as_slice(),
+                    h,
+                )?;
             }
             check_state(t + config.control_dt, &q, &qd, config.divergence_velocity)?;
         }
@@ -347,36 +354,72 @@ pub fn open_loop(
     let mut q = DVector::from_column_slice(q0);
     let mut qd = DVector::from_column_slice(qd0);
     let mut out = DMatrix::zeros(torques.nrows(), dof);
+    let mut rk4 = Rk4::new(dof);
     for k in 0..torques.nrows() {
         out.set_row(k, &q.transpose());
         let tau = torques.row(k).transpose();
-        (q, qd) = rk4_step(plant, &q, &qd, &tau, dt)?;
+        rk4.step(
+            plant,
+            q.as_mut_slice(),
+            qd.as_mut_slice(),
+            tau.as_slice(),
+            dt,
+        )?;
         check_state((k + 1) as f64 * dt, &q, &qd, f64::INFINITY)?;
     }
     Ok(out)
 }
 
-/// One classic RK4 step of qdd = f(q, qd, tau) with tau held constant.
-pub(crate) fn rk4_step(
-    plant: &dyn Plant,
-    q: &DVector<f64>,
-    qd: &DVector<f64>,
-    tau: &DVector<f64>,
-    h: f64,
-) -> Result<(DVector<f64>, DVector<f64>), SimError> {
-    let accel = |q: &DVector<f64>, qd: &DVector<f64>| {
-        forward_dynamics(plant, q.as_slice(), qd.as_slice(), tau.as_slice())
-    };
-    let a1 = accel(q, qd)?;
-    let (q2, v2) = (q + qd * (h / 2.0), qd + &a1 * (h / 2.0));
-    let a2 = accel(&q2, &v2)?;
-    let (q3, v3) = (q + &v2 * (h / 2.0), qd + &a2 * (h / 2.0));
-    let a3 = accel(&q3, &v3)?;
-    let (q4, v4) = (q + &v3 * h, qd + &a3 * h);
-    let a4 = accel(&q4, &v4)?;
-    let q_next = q + (qd + &v2 * 2.0 + &v3 * 2.0 + &v4) * (h / 6.0);
-    let qd_next = qd + (a1 + a2 * 2.0 + a3 * 2.0 + a4) * (h / 6.0);
-    Ok((q_next, qd_next))
+/// The classic RK4 integrator's stage buffers, allocated once per run so
+/// that a step allocates nothing (with a plant whose forward dynamics do
+/// not: a compiled model's).
+pub(crate) struct Rk4 {
+    /// Stage positions and velocities.
+    q: Vec<f64>,
+    v: [Vec<f64>; 3],
+    /// Stage accelerations.
+    a: [Vec<f64>; 4],
+}
+
+impl Rk4 {
+    pub(crate) fn new(dof: usize) -> Rk4 {
+        let zeros = || vec![0.0; dof];
+        Rk4 {
+            q: zeros(),
+            v: [zeros(), zeros(), zeros()],
+            a: [zeros(), zeros(), zeros(), zeros()],
+        }
+    }
+
+    /// Advances (q, qd) by h under the held torque `tau`, in place.
+    pub(crate) fn step(
+        &mut self,
+        plant: &dyn Plant,
+        q: &mut [f64],
+        qd: &mut [f64],
+        tau: &[f64],
+        h: f64,
+    ) -> Result<(), SimError> {
+        let Rk4 { q: stage, v, a } = self;
+        plant.accelerations(q, qd, tau, &mut a[0])?;
+        // Stage k + 1 starts from (q + c v_k, qd + c a_k), v_0 = qd.
+        for (k, c) in [h / 2.0, h / 2.0, h].into_iter().enumerate() {
+            let from = if k == 0 { &*qd } else { &v[k - 1] };
+            for j in 0..q.len() {
+                stage[j] = q[j] + c * from[j];
+            }
+            let (done, next) = a.split_at_mut(k + 1);
+            for j in 0..q.len() {
+                v[k][j] = qd[j] + c * done[k][j];
+            }
+            plant.accelerations(stage, &v[k], tau, &mut next[0])?;
+        }
+        for j in 0..q.len() {
+            q[j] += h / 6.0 * (qd[j] + 2.0 * v[0][j] + 2.0 * v[1][j] + v[2][j]);
+            qd[j] += h / 6.0 * (a[0][j] + 2.0 * a[1][j] + 2.0 * a[2][j] + a[3][j]);
+        }
+        Ok(())
+    }
 }
 
 /// Fails on a non-finite state or a joint faster than `max_velocity`.

@@ -34,8 +34,10 @@ fn energy_drift(h: f64) -> f64 {
             .abs(),
     );
     let mut worst: f64 = 0.0;
+    let mut rk4 = Rk4::new(2);
     for _ in 0..(20.0 / h).round() as usize {
-        (q, qd) = rk4_step(&arm, &q, &qd, &tau, h).unwrap();
+        rk4.step(&arm, q.as_mut_slice(), qd.as_mut_slice(), tau.as_slice(), h)
+            .unwrap();
         worst = worst.max((arm.energy(q.as_slice(), qd.as_slice()) - e0).abs());
     }
     worst / scale

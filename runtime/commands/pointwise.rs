@@ -1,0 +1,129 @@
+//! Commands that evaluate a model sample by sample: `tau` (inverse
+//! dynamics), `qdd` (forward dynamics) and `pose` (the tip frame).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use nalgebra::DMatrix;
+
+use crate::args::{AngleArg, check_angle_units, find_model};
+use crate::dynamics::Dynamics;
+use crate::trajectory::{
+    AngleUnit, ReadOptions, read_forward_csv, read_positions_csv, read_states_csv, write_columns,
+};
+
+/// What the sample-by-sample commands take.
+#[derive(Debug, Args)]
+pub struct PointwiseArgs {
+    /// Model name (a models/*.toml file stem; see `sdnn models`) or a
+    /// description file ending in .toml.
+    #[arg(long)]
+    pub model: String,
+    /// Input file (`-`: standard input); other contract columns (`t`,
+    /// a recording's torques or accelerations) are allowed and not used.
+    #[arg(long)]
+    pub input: PathBuf,
+    /// File to write; standard output if absent or `-`.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Unit of q, qd and qdd in the input (and of qdd in `qdd`'s output).
+    #[arg(long, value_enum, default_value_t)]
+    pub angles: AngleArg,
+    /// Map a file column to a contract column, e.g. `--column pos1=q1`.
+    #[arg(long = "column", value_name = "FILE=CONTRACT", value_parser = crate::inputs::parse_mapping)]
+    pub columns: Vec<(String, String)>,
+    /// File columns to ignore (extra columns are an error otherwise).
+    #[arg(long = "ignore-column", value_name = "NAME")]
+    pub ignored: Vec<String>,
+}
+
+impl PointwiseArgs {
+    /// The model and the reader's options for it.
+    fn open(&self) -> Result<(&'static dyn Dynamics, ReadOptions)> {
+        let model = find_model(&self.model)?;
+        let options = ReadOptions {
+            units: self.angles.into(),
+            dof: Some(model.dof()),
+            min_samples: 1,
+            renames: self.columns.iter().cloned().collect(),
+            ignored: self.ignored.clone(),
+            ..ReadOptions::default()
+        };
+        check_angle_units(model, options.units)?;
+        Ok((model, options))
+    }
+
+    fn output(&self) -> Option<&std::path::Path> {
+        self.output
+            .as_deref()
+            .filter(|p| *p != std::path::Path::new("-"))
+    }
+
+    fn write(&self, prefix: &str, values: &DMatrix<f64>) -> Result<()> {
+        let header: Vec<String> = (1..=values.ncols())
+            .map(|j| format!("{prefix}{j}"))
+            .collect();
+        Ok(write_columns(self.output(), &header, values)?)
+    }
+}
+
+fn row(m: &DMatrix<f64>, r: usize) -> Vec<f64> {
+    m.row(r).iter().copied().collect()
+}
+
+/// `sdnn tau`: q, qd, qdd -> tau1..tauN.
+pub fn tau(args: &PointwiseArgs) -> Result<()> {
+    let (model, options) = args.open()?;
+    let states = read_states_csv(&args.input, &options)?;
+    let mut tau = DMatrix::zeros(states.len(), model.dof());
+    for r in 0..states.len() {
+        let t = model.tau(
+            &row(states.q(), r),
+            &row(states.qd(), r),
+            &row(states.qdd(), r),
+        )?;
+        tau.set_row(r, &t.transpose());
+    }
+    args.write("tau", &tau)
+}
+
+/// `sdnn qdd`: q, qd, tau -> qdd1..qddN, in the input's angle unit.
+pub fn qdd(args: &PointwiseArgs) -> Result<()> {
+    let (model, options) = args.open()?;
+    let [q, qd, tau] = read_forward_csv(&args.input, &options)?;
+    let scale = match options.units.angles {
+        AngleUnit::Degrees => 180.0 / std::f64::consts::PI,
+        AngleUnit::Radians => 1.0,
+    };
+    let mut qdd = DMatrix::zeros(q.nrows(), model.dof());
+    let mut out = vec![0.0; model.dof()];
+    for r in 0..q.nrows() {
+        model.forward_dynamics(&row(&q, r), &row(&qd, r), &row(&tau, r), &mut out)?;
+        for (j, x) in out.iter().enumerate() {
+            qdd[(r, j)] = scale * x;
+        }
+    }
+    args.write("qdd", &qdd)
+}
+
+/// `sdnn pose`: q -> the tip frame's origin x, y, z (m) and rotation
+/// r11..r33 (row-major; columns are the tip's axes in the base frame).
+pub fn pose(args: &PointwiseArgs) -> Result<()> {
+    let (model, options) = args.open()?;
+    let q = read_positions_csv(&args.input, &options)?;
+    let mut poses = DMatrix::zeros(q.nrows(), 12);
+    for r in 0..q.nrows() {
+        let pose = model.tip_pose(&row(&q, r))?;
+        let entries = pose.position.iter().chain(pose.rotation.iter().flatten());
+        for (k, x) in entries.enumerate() {
+            poses[(r, k)] = *x;
+        }
+    }
+    let header: Vec<String> = ["x", "y", "z"]
+        .into_iter()
+        .map(String::from)
+        .chain((1..=3).flat_map(|i| (1..=3).map(move |j| format!("r{i}{j}"))))
+        .collect();
+    Ok(write_columns(args.output(), &header, &poses)?)
+}
