@@ -116,38 +116,44 @@ fn panda_functions(c: &mut Criterion) {
     let model = oracle_model("panda");
     let mut group = c.benchmark_group("panda x4096");
     group.throughput(criterion::Throughput::Elements(states.len() as u64));
-    macro_rules! each {
-        ($name:literal, |$q:ident, $qd:ident, $qdd:ident, $tau:ident| $call:expr) => {
-            group.bench_function($name, |b| {
-                b.iter(|| {
-                    for [$q, $qd, $qdd, $tau] in black_box(&states) {
-                        black_box($call);
-                    }
-                })
-            });
-        };
-    }
-    each!("generated tau", |q, qd, qdd, _tau| arm::tau(q, qd, qdd));
-    each!("generated mass_matrix", |q, _qd, _qdd, _tau| {
-        arm::mass_matrix(q)
+    let mut each = |name: &str, f: &dyn Fn(&[[f64; 7]; 4]) -> f64| {
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                for state in black_box(&states) {
+                    black_box(f(state));
+                }
+            })
+        });
+    };
+    each("generated tau", &|[q, qd, qdd, _]| arm::tau(q, qd, qdd)[0]);
+    each("generated mass_matrix", &|[q, ..]| {
+        arm::mass_matrix(q)[0][0]
     });
-    each!("generated forward_dynamics", |q, qd, _qdd, tau| {
-        arm::forward_dynamics(q, qd, tau)
+    each("generated forward_dynamics", &|[q, qd, _, tau]| {
+        arm::forward_dynamics(q, qd, tau)[0]
     });
-    each!("generated tau_derivatives", |q, qd, qdd, _tau| {
-        arm::tau_derivatives(q, qd, qdd)
+    each("generated tau_derivatives", &|[q, qd, qdd, _]| {
+        arm::tau_derivatives(q, qd, qdd).0[0][0]
     });
-    each!(
-        "generated forward_dynamics_derivatives",
-        |q, qd, _qdd, tau| { arm::forward_dynamics_derivatives(q, qd, tau) }
-    );
-    each!("generated tip_pose + tip_jacobian", |q, _qd, _qdd, _tau| {
-        (arm::tip_pose(q), arm::tip_jacobian(q))
+    each("generated forward_dynamics_derivatives", &|[
+        q,
+        qd,
+        _,
+        tau,
+    ]| {
+        arm::forward_dynamics_derivatives(q, qd, tau).0[0][0]
     });
-    each!("oracle rnea", |q, qd, qdd, _tau| oracle::rnea(
-        &model, q, qd, qdd
-    ));
-    each!("oracle crba", |q, _qd, _qdd, _tau| oracle::crba(&model, q));
+    each("generated tip_pose + tip_jacobian", &|[q, ..]| {
+        arm::tip_pose(q).position[0] + arm::tip_jacobian(q)[0][0]
+    });
+    each("generated tip_pose_and_jacobian", &|[q, ..]| {
+        let (pose, jacobian) = arm::tip_pose_and_jacobian(q);
+        pose.position[0] + jacobian[0][0]
+    });
+    each("oracle rnea", &|[q, qd, qdd, _]| {
+        oracle::rnea(&model, q, qd, qdd)[0]
+    });
+    each("oracle crba", &|[q, ..]| oracle::crba(&model, q)[(0, 0)]);
     group.finish();
 }
 

@@ -1,5 +1,7 @@
-//! MLP training throughput of the study's default network (samples per
-//! second = 20,000 / time per epoch). `cargo bench --bench training`.
+//! MLP training throughput (samples per second = 20,000 / time per
+//! epoch): the study's default network (9-32-32-3), and 9-64-64-3 at batch
+//! 256, the network PyTorch's figure in docs/verification.md was measured
+//! on. `cargo bench --bench training`.
 
 use std::hint::black_box;
 
@@ -21,14 +23,23 @@ fn training(c: &mut Criterion) {
     let mut group = c.benchmark_group("mlp");
     group.throughput(Throughput::Elements(samples as u64));
     group.sample_size(10);
-    for (name, batch) in [
-        ("one epoch, default study network", defaults.batch_size),
-        ("one epoch, default study network, batch 256", 256),
+    for (name, hidden, batch) in [
+        (
+            "one epoch, default study network",
+            &defaults.hidden,
+            defaults.batch_size,
+        ),
+        (
+            "one epoch, default study network, batch 256",
+            &defaults.hidden,
+            256,
+        ),
+        ("one epoch, 9-64-64-3, batch 256", &vec![64, 64], 256),
     ] {
         group.bench_function(name, |b| {
             b.iter(|| {
                 Mlp::params()
-                    .hidden(defaults.hidden.clone())
+                    .hidden(hidden.clone())
                     .batch_size(batch)
                     .learning_rate(defaults.learning_rate)
                     .max_epochs(1)

@@ -92,7 +92,7 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
 }
 
 fn models(format: Format) -> Result<()> {
-    let all = crate::models::MODELS;
+    let all = crate::dynamics::compiled();
     match format {
         Format::Json => {
             let list: Vec<serde_json::Value> = all

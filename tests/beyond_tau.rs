@@ -84,19 +84,25 @@ fn forward_dynamics_inverts_tau_for_every_compiled_model() {
     }
 }
 
+/// A function of q, of (q, qd) and of a state, on slices.
+type OfQ<T> = Box<dyn Fn(&[f64]) -> T>;
+type OfTwo<T> = Box<dyn Fn(&[f64], &[f64]) -> T>;
+type OfThree<T> = Box<dyn Fn(&[f64], &[f64], &[f64]) -> T>;
+
 /// One model's fixed-size functions, as slices.
 struct Functions {
     name: &'static str,
-    tau: Box<dyn Fn(&[f64], &[f64], &[f64]) -> Vec<f64>>,
-    mass_matrix: Box<dyn Fn(&[f64]) -> DMatrix<f64>>,
-    solve_mass: Box<dyn Fn(&[f64], &[f64]) -> Vec<f64>>,
-    forward_dynamics: Box<dyn Fn(&[f64], &[f64], &[f64]) -> Vec<f64>>,
-    tau_derivatives: Box<dyn Fn(&[f64], &[f64], &[f64]) -> [DMatrix<f64>; 2]>,
-    forward_dynamics_derivatives: Box<dyn Fn(&[f64], &[f64], &[f64]) -> [DMatrix<f64>; 2]>,
+    tau: OfThree<Vec<f64>>,
+    mass_matrix: OfQ<DMatrix<f64>>,
+    solve_mass: OfTwo<Vec<f64>>,
+    forward_dynamics: OfThree<Vec<f64>>,
+    tau_derivatives: OfThree<[DMatrix<f64>; 2]>,
+    forward_dynamics_derivatives: OfThree<[DMatrix<f64>; 2]>,
     /// Rotation row-major then position.
-    tip_pose: Box<dyn Fn(&[f64]) -> Vec<f64>>,
-    tip_jacobian: Box<dyn Fn(&[f64]) -> DMatrix<f64>>,
-    tip_jacobian_dot_qd: Box<dyn Fn(&[f64], &[f64]) -> Vec<f64>>,
+    tip_pose: OfQ<Vec<f64>>,
+    tip_jacobian: OfQ<DMatrix<f64>>,
+    tip_pose_and_jacobian: OfQ<(Vec<f64>, DMatrix<f64>)>,
+    tip_jacobian_dot_qd: OfTwo<Vec<f64>>,
 }
 
 macro_rules! functions {
@@ -135,6 +141,16 @@ macro_rules! functions {
                     .collect()
             }),
             tip_jacobian: Box::new(|q| matrix(arm::tip_jacobian(&a(q)))),
+            tip_pose_and_jacobian: Box::new(|q| {
+                let (pose, jacobian) = arm::tip_pose_and_jacobian(&a(q));
+                let pose = pose
+                    .rotation
+                    .iter()
+                    .flatten()
+                    .chain(&pose.position)
+                    .copied();
+                (pose.collect(), matrix(jacobian))
+            }),
             tip_jacobian_dot_qd: Box::new(|q, qd| arm::tip_jacobian_dot_qd(&a(q), &a(qd)).to_vec()),
         }
     }};
@@ -263,6 +279,12 @@ fn check_kinematics(f: &Functions, reference: &Model, q: &[f64], qd: &[f64]) {
         .collect();
     assert_relative(&format!("{name} tip pose"), &pose, &want, 1e-13);
     let jacobian = (f.tip_jacobian)(q);
+    let (together, jacobian_too) = (f.tip_pose_and_jacobian)(q);
+    assert_eq!(
+        (&together, &jacobian_too),
+        (&pose, &jacobian),
+        "{name} tip_pose_and_jacobian"
+    );
     for j in 0..n {
         let rate = central(&|h| (f.tip_pose)(&moved(q, j, h)), 1e-6);
         // The angular velocity from R-dot R^T.
@@ -324,4 +346,58 @@ fn effects_and_ripple_derivatives_are_exact() {
         40,
     );
     check(&functions!(planar_2link), &oracle("planar_2link"), 40);
+}
+
+#[test]
+fn the_panda_tool_frame_sits_on_its_tip_and_its_jacobian_is_exact() {
+    use sdnn::models::panda as arm;
+    let description = codegen::Description::load(crate::util::root().join("models/panda.toml"))
+        .expect("description");
+    let tool = description
+        .tool_frame()
+        .expect("panda_link8 is fixed to link 7");
+    assert_eq!(arm::TOOL_LINK, tool.link);
+    let mut states = States::new(arm::DOF, 23);
+    let pose_of = |q: &[f64]| {
+        let q: [f64; 7] = q.try_into().unwrap();
+        let pose = arm::tool_pose(&q);
+        pose.rotation
+            .iter()
+            .flatten()
+            .chain(&pose.position)
+            .copied()
+            .collect::<Vec<f64>>()
+    };
+    for _ in 0..50 {
+        let (q, _, _) = states.next();
+        let x: [f64; 7] = q.as_slice().try_into().unwrap();
+        let tip = arm::tip_pose(&x);
+        let r = nalgebra::Matrix3::from_fn(|i, j| tip.rotation[i][j]);
+        let p = nalgebra::Vector3::from(tip.position);
+        let (rt, pt) = (r * tool.rotation, p + r * tool.translation);
+        let want: Vec<f64> = (0..9)
+            .map(|k| rt[(k / 3, k % 3)])
+            .chain(pt.iter().copied())
+            .collect();
+        assert_relative("panda tool pose", &pose_of(&q), &want, 1e-13);
+        let jacobian = DMatrix::from_fn(6, 7, |r, c| arm::tool_jacobian(&x)[r][c]);
+        let pose = pose_of(&q);
+        for j in 0..7 {
+            let rate = central(&|h| pose_of(&moved(&q, j, h)), 1e-6);
+            let spin = |a: usize, b: usize| {
+                (0..3)
+                    .map(|k| rate[3 * a + k] * pose[3 * b + k])
+                    .sum::<f64>()
+            };
+            let want = [
+                rate[9],
+                rate[10],
+                rate[11],
+                spin(2, 1),
+                spin(0, 2),
+                spin(1, 0),
+            ];
+            assert_relative("panda tool jacobian", &column(&jacobian, j), &want, 1e-6);
+        }
+    }
 }

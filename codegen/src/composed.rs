@@ -41,17 +41,11 @@ pub fn items() -> TokenStream {
             let bias = bias(q, qd);
             let qdd = solve_factored(&factor, core::array::from_fn(|i| tau[i] - bias[i]));
             let (by_q, by_qd) = tau_derivatives(q, qd, &qdd);
-            let solved = |by: [[f64; DOF]; DOF]| {
-                let mut out = [[0.0; DOF]; DOF];
-                for j in 0..DOF {
-                    let column = solve_factored(&factor, core::array::from_fn(|i| -by[i][j]));
-                    for i in 0..DOF {
-                        out[i][j] = column[i];
-                    }
-                }
-                out
-            };
-            (solved(by_q), solved(by_qd))
+            let minus = |by: [[f64; DOF]; DOF]| by.map(|row| row.map(|x| -x));
+            (
+                solve_factored_columns(&factor, minus(by_q)),
+                solve_factored_columns(&factor, minus(by_qd)),
+            )
         }
     }
 }
@@ -83,6 +77,37 @@ pub fn support() -> TokenStream {
             for i in (0..N).rev() {
                 for k in i + 1..N {
                     x[i] = x[i].sub_mul(factor[k][i], x[k]);
+                }
+            }
+            x
+        }
+        /// X with L D L^T X = B, every column of B a right-hand side (row by
+        /// row, so the columns go through together).
+        #[inline]
+        #[must_use]
+        pub fn solve_factored_columns<const N: usize, const M: usize>(
+            factor: &[[f64; N]; N],
+            b: [[f64; M]; N],
+        ) -> [[f64; M]; N] {
+            let mut x = b;
+            for i in 0..N {
+                for k in 0..i {
+                    let (l, above) = (factor[i][k], x[k]);
+                    for (xi, xk) in x[i].iter_mut().zip(above) {
+                        *xi = xi.sub_mul(l, xk);
+                    }
+                }
+            }
+            for i in 0..N {
+                let scale = factor[i][i];
+                x[i] = x[i].map(|v| v * scale);
+            }
+            for i in (0..N).rev() {
+                for k in i + 1..N {
+                    let (l, below) = (factor[k][i], x[k]);
+                    for (xi, xk) in x[i].iter_mut().zip(below) {
+                        *xi = xi.sub_mul(l, xk);
+                    }
                 }
             }
             x

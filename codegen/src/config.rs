@@ -126,7 +126,8 @@ impl Config {
     }
 }
 
-/// Rust source that includes every generated model and lists them, sorted.
+/// Rust source that includes every generated model and lists them, sorted
+/// (the `sdnn-models` crate's body: its manifest sits beside `models/`).
 pub fn registry(names: &[String]) -> String {
     let mut sorted = names.to_vec();
     sorted.sort();
@@ -137,15 +138,15 @@ pub fn registry(names: &[String]) -> String {
             "/// Generated dynamics of `models/{name}.toml`.\n\
              #[allow(clippy::all, clippy::pedantic)]\n\
              pub mod {name} {{\n    \
-             include!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/models/generated/{name}.rs\"));\n    \
-             crate::compiled_model!(\"{name}\");\n}}\n"
+             include!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/../models/generated/{name}.rs\"));\n    \
+             sdnn_dynamics::compiled_model!(\"{name}\");\n}}\n"
         );
     }
     let entries: Vec<String> = sorted.iter().map(|n| format!("&{n}::MODEL")).collect();
     let _ = writeln!(
         out,
         "/// Every compiled model, sorted by name.\n\
-         pub static MODELS: &[&dyn crate::dynamics::Dynamics] = &[{}];",
+         pub static MODELS: &[&dyn sdnn_dynamics::Dynamics] = &[{}];",
         entries.join(", ")
     );
     out

@@ -107,6 +107,11 @@ impl Description {
         &self.chain
     }
 
+    /// The tool frame, if the tip's link carries one (`tool.rs`).
+    pub fn tool_frame(&self) -> Option<crate::tool::ToolFrame> {
+        crate::tool::tool_frame(&self.chain, &self.joints)
+    }
+
     /// Degrees of freedom: the moving joints that do not follow another.
     pub fn dof(&self) -> usize {
         self.chain.dof()

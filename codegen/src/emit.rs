@@ -77,6 +77,8 @@ pub enum Shape {
     /// `Pose`s (12 roots each: rotation row-major, then position).
     Poses(usize),
     Pose,
+    /// A `Pose` and a matrix, as a pair.
+    PoseAndMatrix(usize, usize),
 }
 
 impl Shape {
@@ -101,6 +103,10 @@ impl Shape {
                 quote! { [Pose; #count] }
             }
             Shape::Pose => quote! { Pose },
+            Shape::PoseAndMatrix(rows, cols) => {
+                let m = matrix(rows, cols);
+                quote! { (Pose, #m) }
+            }
         }
     }
 
@@ -128,6 +134,11 @@ impl Shape {
                 quote! { [#(#poses),*] }
             }
             Shape::Pose => pose(values),
+            Shape::PoseAndMatrix(_, cols) => {
+                let (first, rest) = values.split_at(12);
+                let (first, rest) = (pose(first), matrix(rest, cols));
+                quote! { (#first, #rest) }
+            }
         }
     }
 }

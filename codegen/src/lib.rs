@@ -15,6 +15,7 @@ pub mod reduce;
 mod schema;
 #[cfg(any(feature = "symbolic", test))]
 mod states;
+pub mod tool;
 mod validate;
 
 #[cfg(feature = "symbolic")]

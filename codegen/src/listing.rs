@@ -33,6 +33,14 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
     let bodies = int(n);
     let links = chain.bodies.iter().map(|b| Literal::string(&b.link));
     let tip = Literal::string(&chain.bodies[traced.tip].link);
+    let tool = traced.tool.as_ref().map(|(link, ..)| {
+        let link = Literal::string(link);
+        quote! {
+            /// The tool frame's link: fixed to the tip link, nothing after it
+            /// (`tool_pose`, `tool_jacobian`).
+            pub const TOOL_LINK: &str = #link;
+        }
+    });
     let groups = traced.groups.iter().map(|group| {
         let doc = format!(" {}", group.doc);
         let items = group
@@ -69,6 +77,7 @@ pub fn constants(description: &Description, traced: &Traced, inputs: &[Input]) -
         pub const LINK_NAMES: [&str; #bodies] = [#(#links),*];
         /// The tip link: the last moving joint's (`tip_pose`, `tip_jacobian`).
         pub const TIP_LINK: &str = #tip;
+        #tool
         #(#groups)*
         #derived
         /// Parameter values of this description, in regressor column order:

@@ -48,7 +48,7 @@ fn main() -> ExitCode {
                 Outcome::Fresh => println!("fresh        {}", report.generated.display()),
                 Outcome::Stale => {
                     println!(
-                        "STALE        {} (run `cargo run -p sdnn-codegen -- --force {}` and commit the result)",
+                        "STALE        {} (regenerate it with `sdnn-codegen --force {}` or by deleting it and running `cargo build --release`, and commit the result)",
                         report.generated.display(),
                         report.toml.display()
                     );

@@ -219,6 +219,35 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
     (Group { doc, items }, leaves)
 }
 
+/// The tool frame's named numbers (origin in the tip link's frame, then
+/// rotation, structural 0 and +-1 as literals), their listing group, and
+/// the leaves: rotation rows and origin.
+pub fn tool(dag: &mut Dag, tool: &crate::tool::ToolFrame) -> (Group, [V3; 3], V3) {
+    let mut items = Vec::new();
+    let mut named = |dag: &mut Dag, name: String, value: f64, structural: bool| {
+        items.push((name.clone(), Definition::Value(value)));
+        if structural {
+            structural_leaf(dag, &name, value)
+        } else {
+            leaf(dag, &name, value)
+        }
+    };
+    let translation =
+        [0, 1, 2].map(|k| named(dag, format!("TOOL_{}", AXES[k]), tool.translation[k], false));
+    let rotation = [0, 1, 2].map(|r| {
+        [0, 1, 2].map(|c| {
+            let value = snapped(tool.rotation[(r, c)]);
+            named(dag, format!("TOOL_R{r}{c}"), value, true)
+        })
+    });
+    let doc = format!(
+        "The tool frame ({:?}, fixed to the tip link): origin in the tip link's axes (m), \
+         rotation (entries within 1e-15 of 0 or +-1 made exact).",
+        tool.link
+    );
+    (Group { doc, items }, rotation, translation)
+}
+
 /// The name of joint `i`'s (1-based) Stribeck velocity constant.
 pub fn stribeck_velocity(i: usize) -> String {
     format!("JOINT{i}_STRIBECK_VELOCITY")

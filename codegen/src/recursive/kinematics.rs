@@ -50,10 +50,31 @@ impl Tracer<'_> {
         placements
     }
 
-    /// The Jacobian of `tip` (6 x dof row-major: linear velocity of its
-    /// origin, then angular velocity, base axes). A body coupled to a
-    /// degree of freedom adds its motion times its multiplier.
-    pub(super) fn jacobian(&mut self, placements: &[Placement], tip: usize) -> Vec<NodeId> {
+    /// A frame fixed to `body` (rotation rows and origin in its axes) in
+    /// the base frame.
+    pub(super) fn attached(
+        &mut self,
+        body: &Placement,
+        rotation: &[V3; 3],
+        origin: V3,
+    ) -> Placement {
+        let offset = self.mat_vec(&body.rotation, origin);
+        Placement {
+            rotation: self.mat_mul(&body.rotation, rotation),
+            position: self.add(body.position, offset),
+        }
+    }
+
+    /// The Jacobian of a frame fixed to `tip` with origin `point` (6 x dof
+    /// row-major: linear velocity of that origin, then angular velocity,
+    /// base axes). A body coupled to a degree of freedom adds its motion
+    /// times its multiplier.
+    pub(super) fn jacobian(
+        &mut self,
+        placements: &[Placement],
+        tip: usize,
+        point: V3,
+    ) -> Vec<NodeId> {
         let n = self.chain.dof();
         let zero = self.dag.constant(0.0);
         let mut columns = vec![[zero; 6]; n];
@@ -64,7 +85,7 @@ impl Tracer<'_> {
             let (linear, angular) = if self.prismatic(b) {
                 (axis, [zero; 3])
             } else {
-                let lever = self.subtract(placements[tip].position, placements[b].position);
+                let lever = self.subtract(point, placements[b].position);
                 (self.cross(axis, lever), axis)
             };
             let multiplier = self.joint(b).coupling[0];

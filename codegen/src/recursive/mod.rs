@@ -86,6 +86,9 @@ pub struct Traced {
     /// The tip's Jacobian (6 x dof) and J-dot qd (6).
     pub tip_jacobian: Vec<NodeId>,
     pub tip_jacobian_dot_qd: Vec<NodeId>,
+    /// The tool frame's link, pose (12) and Jacobian (6 x dof), when the
+    /// description has one.
+    pub tool: Option<(String, Vec<NodeId>, Vec<NodeId>)>,
 }
 
 /// Traces every function of `chain`.
@@ -96,6 +99,11 @@ pub struct Traced {
 /// the degrees of freedom (tau_d = sum over the bodies b it drives of
 /// multiplier_b tau_b, M = G^T M_b G): the coupled system's equations.
 pub fn trace(chain: &Chain) -> Traced {
+    trace_with_tool(chain, None)
+}
+
+/// `trace`, with the tool frame's pose and Jacobian when there is one.
+pub fn trace_with_tool(chain: &Chain, tool: Option<&crate::tool::ToolFrame>) -> Traced {
     let mut dag = Dag::default();
     let leaves = constants::leaves(&mut dag, chain);
     let mut t = Tracer {
@@ -181,8 +189,15 @@ pub fn trace(chain: &Chain) -> Traced {
     let placements = t.placements(&rotations);
     let link_poses = placements.iter().flat_map(|p| p.entries()).collect();
     let tip = *chain.dof_bodies().last().expect("a chain moves");
-    let tip_jacobian = t.jacobian(&placements, tip);
+    let tip_jacobian = t.jacobian(&placements, tip, placements[tip].position);
     let tip_jacobian_dot_qd = t.jacobian_drift(&placements, &moving, tip);
+    let tool = tool.map(|frame| {
+        let (group, rotation, translation) = constants::tool(&mut t.dag, frame);
+        t.leaves.groups.push(group);
+        let placement = t.attached(&placements[tip], &rotation, translation);
+        let jacobian = t.jacobian(&placements, tip, placement.position);
+        (frame.link.clone(), placement.entries(), jacobian)
+    });
     Traced {
         dag: t.dag,
         groups: t.leaves.groups,
@@ -200,6 +215,7 @@ pub fn trace(chain: &Chain) -> Traced {
         tip,
         tip_jacobian,
         tip_jacobian_dot_qd,
+        tool,
     }
 }
 

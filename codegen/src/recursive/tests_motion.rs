@@ -227,3 +227,67 @@ fn placements_jacobian_and_drift_equal_plain_kinematics() {
         }
     }
 }
+
+#[test]
+fn a_tool_frame_fixed_to_the_tip_is_placed_and_its_jacobian_is_exact() {
+    // A flange and a tool centre point after the last joint, through two
+    // fixed joints; a second fixed leaf listed earlier is not the tool.
+    let toml = format!(
+        "{SLIDERS}{}",
+        r#"
+    [[links]]
+    name = "flange"
+    [[links]]
+    name = "tcp"
+    [[links]]
+    name = "camera"
+    [[joints]]
+    name = "to_camera"
+    type = "fixed"
+    parent = "d"
+    child = "camera"
+    origin = { xyz = [0.0, 0.05, 0.0] }
+    [[joints]]
+    name = "to_flange"
+    type = "fixed"
+    parent = "d"
+    child = "flange"
+    origin = { xyz = [0.0, 0.0, 0.1], rpy = [0.3, 0.0, 0.0] }
+    [[joints]]
+    name = "to_tcp"
+    type = "fixed"
+    parent = "flange"
+    child = "tcp"
+    origin = { xyz = [0.02, 0.0, 0.15], rpy = [0.0, 0.5, -0.2] }
+    "#
+    );
+    let description = Description::parse(&toml, "t", Path::new("t.toml")).unwrap();
+    let tool = description.tool_frame().expect("a tool frame");
+    assert_eq!(tool.link, "tcp");
+    let chain = description.chain();
+    let traced = trace_with_tool(chain, Some(&tool));
+    let (_, pose, jacobian) = traced.tool.clone().unwrap();
+    let n = chain.dof();
+    let tool_at = |q: &[f64]| {
+        let (r, p) = placements(chain, q)[traced.tip];
+        pose_entries(&(r * tool.rotation), &(p + r * tool.translation))
+    };
+    for [q, qd, _] in states(n, 20) {
+        let got = at(&traced, chain, &pose, &q, &qd, &qd);
+        assert_near("tool pose", &got, &tool_at(&q), 1e-13);
+        let j = at(&traced, chain, &jacobian, &q, &qd, &qd);
+        for d in 0..n {
+            let rate = difference(&|h| tool_at(&moved(&q, d, h)), 1e-3);
+            let r = Matrix3::from_fn(|a, b| got[3 * a + b]);
+            let spin = Matrix3::from_fn(|a, b| rate[3 * a + b]) * r.transpose();
+            let want: Vec<f64> = rate[9..12]
+                .iter()
+                .copied()
+                .chain([spin[(2, 1)], spin[(0, 2)], spin[(1, 0)]])
+                .collect();
+            let column: Vec<f64> = (0..6).map(|k| j[k * n + d]).collect();
+            assert_near("tool jacobian", &column, &want, 1e-9);
+        }
+    }
+    assert!(shipped("planar_2link").tool_frame().is_none());
+}

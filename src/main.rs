@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     restore_sigpipe();
+    sdnn::install_models();
     sdnn::output::protect_inputs();
     match sdnn::cli::run(std::env::args_os()) {
         Ok(()) => ExitCode::SUCCESS,

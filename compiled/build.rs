@@ -8,12 +8,12 @@ use codegen::{Config, Outcome};
 fn main() {
     // A directory: cargo re-runs this script when any file below it changes,
     // including added or removed descriptions.
-    println!("cargo:rerun-if-changed=models");
+    println!("cargo:rerun-if-changed=../models");
     // CI sets this to regenerate every model in memory and fail on any
     // difference from the committed text (nothing is written).
     println!("cargo:rerun-if-env-changed=SDNN_VERIFY_GENERATED");
     let verify = std::env::var_os("SDNN_VERIFY_GENERATED").is_some();
-    let results = match Config::new("models").check(verify).run() {
+    let results = match Config::new("../models").check(verify).run() {
         Ok(results) => results,
         Err(e) => fail(&e),
     };
@@ -30,17 +30,16 @@ fn main() {
                     let ops: Vec<String> = operations.iter().map(ToString::to_string).collect();
                     println!(
                         "cargo:warning=regenerated {} in {seconds:.1} s (operations: {}); commit it with its TOML",
-                        report.generated.display(),
+                        shown(&report.generated),
                         ops.join(", ")
                     );
                 }
                 if report.outcome == Outcome::Stale {
                     errors.push(format!(
-                        "{} differs from what the generator now produces from {}; run \
-                         `cargo run -p sdnn-codegen -- --force {}` and commit the result",
-                        report.generated.display(),
-                        report.toml.display(),
-                        report.toml.display()
+                        "{} differs from what the generator now produces from {}; delete it, \
+                         run `cargo build --release` (it regenerates the file) and commit the result",
+                        shown(&report.generated),
+                        shown(&report.toml)
                     ));
                 }
                 names.push(report.name);
@@ -55,6 +54,11 @@ fn main() {
     if let Err(e) = std::fs::write(&out, codegen::registry(&names)) {
         fail(&format!("{}: {e}", out.display()));
     }
+}
+
+/// A path under `../models` as the repository root sees it.
+fn shown(path: &std::path::Path) -> std::path::Display<'_> {
+    path.strip_prefix("..").unwrap_or(path).display()
 }
 
 fn fail(message: &str) -> ! {
