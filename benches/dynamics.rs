@@ -6,6 +6,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use sdnn::models::kinova_gen3_lite_3dof as kinova;
 use sdnn::oracle::{self, Model};
+use sdnn::sim::plant::Plant;
 
 fn oracle_model(name: &str) -> Model {
     let path = format!("{}/models/{name}.toml", env!("CARGO_MANIFEST_DIR"));
@@ -157,5 +158,63 @@ fn panda_functions(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, kinova_3dof, six_and_seven_joints, panda_functions);
+/// A compiled model integrated through the mass matrix and the bias (a
+/// Cholesky solve per RK4 stage): the virtual robot before issue 23.
+struct ThroughMassMatrix<'a>(sdnn::sim::models::Compiled<'a>);
+
+impl Plant for ThroughMassMatrix<'_> {
+    fn dof(&self) -> usize {
+        self.0.dof()
+    }
+    fn mass_matrix(&self, q: &[f64]) -> nalgebra::DMatrix<f64> {
+        self.0.mass_matrix(q)
+    }
+    fn bias(&self, q: &[f64], qd: &[f64]) -> nalgebra::DVector<f64> {
+        self.0.bias(q, qd)
+    }
+}
+
+/// The virtual robot recording 5 s at 1 kHz on the default 3-DOF plant and
+/// on the Panda: the generated forward dynamics against the Cholesky path,
+/// same trajectory, same run.
+fn virtual_robot(c: &mut Criterion) {
+    use sdnn::sim::models::Compiled;
+    use sdnn::sim::reference::{JointLimits, WaypointConfig, WaypointTrajectory};
+    use sdnn::sim::simulate::{NoiseConfig, SimConfig, simulate};
+    let mut group = c.benchmark_group("virtual robot, 5 s at 1 kHz");
+    group.sample_size(10);
+    for name in ["kinova_gen3_lite_3dof_plant", "panda"] {
+        let model = sdnn::model(name).expect("compiled model");
+        let reference = WaypointTrajectory::new(
+            &WaypointConfig {
+                duration: 5.0,
+                limits: JointLimits::uniform(model.dof(), (-1.5, 1.5), 0.8, 2.0),
+                ..Default::default()
+            },
+            1,
+        )
+        .expect("reference");
+        let config = SimConfig {
+            noise: NoiseConfig::none(),
+            ..Default::default()
+        };
+        let generated = Compiled(model);
+        let cholesky = ThroughMassMatrix(Compiled(model));
+        group.bench_function(format!("{name}, generated forward dynamics"), |b| {
+            b.iter(|| simulate(&generated, &generated, &reference, &config, 1).expect("runs"))
+        });
+        group.bench_function(format!("{name}, mass matrix + Cholesky"), |b| {
+            b.iter(|| simulate(&cholesky, &generated, &reference, &config, 1).expect("runs"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    kinova_3dof,
+    six_and_seven_joints,
+    panda_functions,
+    virtual_robot
+);
 criterion_main!(benches);

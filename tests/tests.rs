@@ -13,6 +13,7 @@ mod hidden_effects;
 mod hostile;
 mod inertial;
 mod lumping;
+mod pointwise;
 mod prismatic;
 mod readers_fuzz;
 mod springs;
