@@ -155,6 +155,17 @@ fn panda_functions(c: &mut Criterion) {
         oracle::rnea(&model, q, qd, qdd)[0]
     });
     each("oracle crba", &|[q, ..]| oracle::crba(&model, q)[(0, 0)]);
+    each("oracle forward dynamics (crba, rnea, Cholesky)", &|[
+        q,
+        qd,
+        _,
+        tau,
+    ]| {
+        oracle::forward_dynamics(&model, q, qd, tau).map_or(0.0, |x| x[0])
+    });
+    each("oracle placements", &|[q, ..]| {
+        oracle::placements(&model, q)[6].1.x
+    });
     group.finish();
 }
 

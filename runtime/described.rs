@@ -170,8 +170,8 @@ mod tests {
     #[test]
     fn a_description_file_matches_its_compiled_model() {
         let compiled = crate::model("kinova_gen3_lite_3dof_plant").unwrap();
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("models/kinova_gen3_lite_3dof_plant.toml");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../models/kinova_gen3_lite_3dof_plant.toml");
         let described = Described::load(&path).unwrap();
         let (q, qd, qdd) = ([0.3, -0.7, 1.1], [0.5, -0.2, 0.9], [1.0, 2.0, -3.0]);
         let a = compiled.tau(&q, &qd, &qdd).unwrap();

@@ -418,7 +418,7 @@ fn attachment_adds_a_fixed_payload_link() {
 }
 
 /// Kinova's URDF, vendored with its licence in data/gen3_lite/.
-const GEN3_LITE: &str = "data/gen3_lite/GEN3-LITE.urdf";
+const GEN3_LITE: &str = "../data/gen3_lite/GEN3-LITE.urdf";
 
 fn gen3_lite() -> String {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(GEN3_LITE);
