@@ -131,15 +131,27 @@ fn structural_leaf(dag: &mut Dag, name: &str, value: f64) -> NodeId {
     }
 }
 
+/// A named number listed in `items`; structural ones (rotation and axis
+/// entries) are literals when 0 or +-1.
+fn listed(
+    items: &mut Vec<(String, Definition)>,
+    dag: &mut Dag,
+    name: String,
+    value: f64,
+    structural: bool,
+) -> NodeId {
+    items.push((name.clone(), Definition::Value(value)));
+    if structural {
+        structural_leaf(dag, &name, value)
+    } else {
+        leaf(dag, &name, value)
+    }
+}
+
 fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
     let mut items = Vec::new();
     let mut named = |dag: &mut Dag, name: String, value: f64, structural: bool| {
-        items.push((name.clone(), Definition::Value(value)));
-        if structural {
-            structural_leaf(dag, &name, value)
-        } else {
-            leaf(dag, &name, value)
-        }
+        listed(&mut items, dag, name, value, structural)
     };
     let translation = [0, 1, 2].map(|k| {
         named(
@@ -225,12 +237,7 @@ fn joint(dag: &mut Dag, i: usize, body: &Body) -> (Group, JointLeaves) {
 pub fn tool(dag: &mut Dag, tool: &crate::tool::ToolFrame) -> (Group, [V3; 3], V3) {
     let mut items = Vec::new();
     let mut named = |dag: &mut Dag, name: String, value: f64, structural: bool| {
-        items.push((name.clone(), Definition::Value(value)));
-        if structural {
-            structural_leaf(dag, &name, value)
-        } else {
-            leaf(dag, &name, value)
-        }
+        listed(&mut items, dag, name, value, structural)
     };
     let translation =
         [0, 1, 2].map(|k| named(dag, format!("TOOL_{}", AXES[k]), tool.translation[k], false));

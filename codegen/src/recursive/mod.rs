@@ -139,31 +139,11 @@ pub fn trace_with_tool(chain: &Chain, tool: Option<&crate::tool::ToolFrame>) -> 
     // Each body's joint torque (rigid body, effects, position), then the
     // degrees of freedom's.
     let rigid = t.backward(&rotations, &motions);
-    let joint_torques: Vec<NodeId> = rigid
-        .into_iter()
-        .enumerate()
-        .map(|(b, rigid)| {
-            let effects = t.effects(b, true);
-            let position = t.position_torque(b);
-            let with_effects = t.dag.sum2(rigid, effects);
-            t.dag.sum2(with_effects, position)
-        })
-        .collect();
-    let tau = t.project(&joint_torques, 1);
+    let tau = t.with_joint_effects(rigid, true);
     let (tau_by_q, tau_by_qd) = t.tau_derivatives(&tau);
     let coasting = t.forward(&rotations, &no_acceleration, base_acceleration);
-    let bias: Vec<NodeId> = t
-        .backward(&rotations, &coasting)
-        .into_iter()
-        .enumerate()
-        .map(|(b, rigid)| {
-            let effects = t.effects(b, false);
-            let position = t.position_torque(b);
-            let with_effects = t.dag.sum2(rigid, effects);
-            t.dag.sum2(with_effects, position)
-        })
-        .collect();
-    let bias = t.project(&bias, 1);
+    let rigid = t.backward(&rotations, &coasting);
+    let bias = t.with_joint_effects(rigid, false);
     let rest = t.forward(&rotations, &at_rest, base_acceleration);
     let at_rest: Vec<NodeId> = t
         .backward(&rotations, &rest)
@@ -296,6 +276,23 @@ impl Tracer<'_> {
             // coefficients are the literal 0 and this input is never used.
             _ => own,
         }
+    }
+
+    /// Each body's rigid-body torque plus its joint's effects (armature
+    /// with `with_armature`) and torque of the position, projected onto the
+    /// degrees of freedom.
+    fn with_joint_effects(&mut self, rigid: Vec<NodeId>, with_armature: bool) -> Vec<NodeId> {
+        let torques: Vec<NodeId> = rigid
+            .into_iter()
+            .enumerate()
+            .map(|(b, rigid)| {
+                let effects = self.effects(b, with_armature);
+                let position = self.position_torque(b);
+                let with_effects = self.dag.sum2(rigid, effects);
+                self.dag.sum2(with_effects, position)
+            })
+            .collect();
+        self.project(&torques, 1)
     }
 
     /// Rows per body projected onto the degrees of freedom, each row

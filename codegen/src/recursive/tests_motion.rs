@@ -291,4 +291,3 @@ fn a_tool_frame_fixed_to_the_tip_is_placed_and_its_jacobian_is_exact() {
     }
     assert!(shipped("planar_2link").tool_frame().is_none());
 }
-
