@@ -417,7 +417,7 @@ fn endless_lines_gaps_and_devices_are_handled() {
             "--out",
             out.to_str().unwrap(),
         ]),
-        "have the same file name",
+        "give the same output file name",
     );
 }
 

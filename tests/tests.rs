@@ -1,5 +1,6 @@
 //! Integration tests of the product, one binary (see `util` for helpers).
 
+mod bags;
 mod cli;
 mod data_effects;
 mod descriptions;

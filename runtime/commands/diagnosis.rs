@@ -43,7 +43,7 @@ pub struct DiagnoseArgs {
 pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
     let model = find_model(&args.model)?;
     crate::args::check_angle_units(model, args.input.angles.into())?;
-    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
     let pipeline = args.filter.resolve(&recordings)?;
     let report = crate::diagnose::diagnose(
         model,

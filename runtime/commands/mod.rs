@@ -113,7 +113,7 @@ pub struct PreprocessArgs {
     /// Measured CSV files.
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
-    /// Output folder (same file names).
+    /// Output folder (same file names; a bag's `.mcap` becomes `.csv`).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -128,7 +128,7 @@ pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
     for_each_file(&args.data, |path| {
         let (processed, pipeline) = load_one(path, None, &args.input, &args.filter)?;
         eprintln!("{}: {}", path.display(), pipeline.summary());
-        write_csv(args.out.join(file_name(path)?), &processed)?;
+        write_csv(args.out.join(output_name(path)?), &processed)?;
         Ok(())
     })
 }
@@ -159,12 +159,12 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
         let traj = if args.preprocessed {
-            load_preprocessed(path, Some(model.dof()), &args.input)?
+            load_preprocessed(path, Some(model.joint_names()), &args.input)?
         } else {
-            load_one(path, Some(model.dof()), &args.input, &args.filter)?.0
+            load_one(path, Some(model.joint_names()), &args.input, &args.filter)?.0
         };
         let analytical = traj.with_tau(model_torques(model, &traj)?)?;
-        write_csv(args.out.join(file_name(path)?), &analytical)?;
+        write_csv(args.out.join(output_name(path)?), &analytical)?;
         Ok(())
     })
 }
@@ -296,7 +296,7 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
             );
         }
     }
-    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
     let pipeline = args.filter.resolve(&recordings)?;
     let mut compared = Vec::new();
     for (raw, path) in recordings.iter().zip(&args.data) {
@@ -413,22 +413,44 @@ pub fn predict(args: &PredictArgs) -> Result<()> {
     Ok(())
 }
 
-fn file_name(path: &Path) -> Result<&std::ffi::OsStr> {
-    path.file_name()
-        .with_context(|| format!("{}: not a file name", path.display()))
+/// The output's file name for input `path` in an output folder: the
+/// input's name, a bag's (`.mcap`) with `.csv` since the output is CSV.
+fn output_name(path: &Path) -> Result<std::ffi::OsString> {
+    if path == Path::new("-") {
+        bail!(
+            "`-` (standard input) has no file name to give its output in the output folder: \
+             save it to a file first"
+        );
+    }
+    let name = Path::new(
+        path.file_name()
+            .with_context(|| format!("{}: not a file name", path.display()))?,
+    );
+    let bag = name
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    Ok(if bag {
+        name.with_extension("csv").into_os_string()
+    } else {
+        name.as_os_str().to_os_string()
+    })
 }
 
-/// Runs `f` on every file, whose output is the file's name in the output
+/// Runs `f` on every file, whose output is [`output_name`] in the output
 /// folder; a bad file is reported and the rest still run.
 fn for_each_file(files: &[PathBuf], f: impl Fn(&Path) -> Result<()>) -> Result<()> {
-    for (k, path) in files.iter().enumerate() {
-        let name = file_name(path)?;
-        if let Some(other) = files[..k].iter().find(|p| p.file_name() == Some(name)) {
+    let names = files
+        .iter()
+        .map(|p| output_name(p))
+        .collect::<Result<Vec<_>>>()?;
+    for (k, (path, name)) in files.iter().zip(&names).enumerate() {
+        if let Some(other) = names[..k].iter().position(|n| n == name) {
             bail!(
-                "{} and {} have the same file name: their outputs would overwrite each other in \
-                 the output folder (rename one, or run them separately)",
-                other.display(),
-                path.display()
+                "{} and {} give the same output file name ({}): their outputs would overwrite \
+                 each other in the output folder (rename one, or run them separately)",
+                files[other].display(),
+                path.display(),
+                name.to_string_lossy()
             );
         }
     }

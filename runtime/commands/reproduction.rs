@@ -242,7 +242,9 @@ pub struct StudyArgs {
 pub fn study_command(args: &StudyArgs) -> Result<()> {
     let nominal = find_model(&args.model)?;
     crate::args::check_angle_units(nominal, args.input.angles.into())?;
-    let recordings = args.input.read_all(&args.data, Some(nominal.dof()))?;
+    let recordings = args
+        .input
+        .read_all(&args.data, Some(nominal.joint_names()))?;
     let config = StudyConfig {
         preprocess: args.filter.resolve(&recordings)?.settings,
         trajectories: recordings.len() * (args.train_pieces + 1),

@@ -165,6 +165,7 @@ fn read(
     let options = BagOptions {
         topic: topic.map(str::to_string),
         joints: joints.map(names),
+        model: None,
     };
     read_joint_states(path, &options)
 }
@@ -599,7 +600,7 @@ fn a_bag_is_diagnosed_like_a_csv() {
         torque_scales: vec![],
         torque_delay: None,
     };
-    let traj = input.read(&path, Some(3)).unwrap();
+    let traj = input.read(&path, Some(nominal.joint_names())).unwrap();
     assert!((traj.q()[(100, 1)] - recording.q()[(100, 1)]).abs() < 1e-9);
     let recordings = [traj];
     let pipeline = crate::preprocess::Pipeline::auto(&recordings, None, None).unwrap();
@@ -619,11 +620,19 @@ fn a_bag_is_diagnosed_like_a_csv() {
             d.text()
         );
     }
-    // Without --joints the bag's four joints do not fit the model.
-    let all = crate::inputs::InputArgs {
+    // Without --joints the model's joint names pick the same columns.
+    let by_name = crate::inputs::InputArgs {
         joints: None,
-        ..input
+        ..input.clone()
     };
-    let error = all.read(&path, Some(3)).unwrap_err().to_string();
+    let again = by_name.read(&path, Some(nominal.joint_names())).unwrap();
+    assert_eq!(again.q(), recordings[0].q());
+    // Without a model the bag's four joints do not fit three.
+    let error = by_name
+        .read(&path, Some(&["a", "b", "c"]))
+        .unwrap_err()
+        .to_string();
     assert!(error.contains("--joints"), "{error}");
 }
+
+mod names;
