@@ -11,6 +11,7 @@ mod generated_code;
 mod held_joints;
 mod hidden_effects;
 mod hostile;
+mod hostile2;
 mod inertial;
 mod lumping;
 mod prismatic;

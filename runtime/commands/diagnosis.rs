@@ -57,8 +57,8 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
         },
     )?;
     match args.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&report)?),
-        Format::Text => print!("{}", report.text()),
+        Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&report)?)?,
+        Format::Text => crate::output::print(&report.text())?,
     }
     if let Some(dir) = &args.plots {
         for path in crate::diagnose::plots::write(dir, &report)? {

@@ -100,11 +100,11 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    println!(
+    crate::output::print_line(&format!(
         "{} trajectories written to {}",
         args.count,
         args.out.display()
-    );
+    ))?;
     Ok(())
 }
 
@@ -255,7 +255,7 @@ pub fn train(args: &TrainArgs) -> Result<()> {
     if crate::output::is_stdout(&args.out) {
         eprintln!("{text}");
     } else {
-        println!("{text}");
+        crate::output::print_line(&text)?;
     }
     Ok(())
 }
@@ -331,23 +331,25 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
         .as_ref()
         .map_or(model.name().to_string(), |p| p.display().to_string());
     match args.format {
-        Format::Json => println!(
-            "{}",
-            serde_json::json!({
+        Format::Json => crate::output::print_line(
+            &serde_json::json!({
                 "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
                 "mse_torque_as_logged": mse_as_logged, "preprocessing": pipeline,
             })
-        ),
+            .to_string(),
+        )?,
         Format::Text => {
-            println!("model {name}: {} samples", m.nrows());
-            println!("{}", pipeline.summary());
+            use std::fmt::Write as _;
+            let mut text = format!("model {name}: {} samples\n", m.nrows());
+            let _ = writeln!(text, "{}", pipeline.summary());
             let levers = crate::dynamics::joint_levers(model);
             let unit = |j: usize| match levers.get(j) {
                 Some(&l) if l != 1.0 => "N^2",
                 _ => "N m^2",
             };
             for (j, v) in mse.iter().enumerate() {
-                println!(
+                let _ = writeln!(
+                    text,
                     "  joint {}: MSE {v:.6} {} (against the torque as logged: {:.6})",
                     j + 1,
                     unit(j),
@@ -360,7 +362,8 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
             } else {
                 unit(0)
             };
-            println!("  mean:    MSE {mean:.6} {mean_unit}");
+            let _ = writeln!(text, "  mean:    MSE {mean:.6} {mean_unit}");
+            crate::output::print(&text)?;
         }
     }
     Ok(())

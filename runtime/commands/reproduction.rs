@@ -113,10 +113,9 @@ fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
     bar.finish_and_clear();
     let markdown = crate::study::report::write_map(&cells, &config, out)?;
     match args.run.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&cells)?),
+        Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&cells)?)?,
         Format::Text => {
-            println!("{markdown}");
-            println!("Map written to {}", out.display());
+            crate::output::print(&format!("{markdown}\nMap written to {}\n", out.display()))?;
         }
     }
     Ok(())
@@ -207,10 +206,13 @@ fn run_study(
     let result = study(&report)?;
     bar.finish_and_clear();
     match format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&result)?),
+        Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&result)?)?,
         Format::Text => {
-            println!("{}", crate::study::report::markdown(&result));
-            println!("Results written to {}", out.display());
+            crate::output::print(&format!(
+                "{}\nResults written to {}\n",
+                crate::study::report::markdown(&result),
+                out.display()
+            ))?;
         }
     }
     Ok(())
