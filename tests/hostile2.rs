@@ -127,3 +127,83 @@ fn every_command_on_a_full_standard_output_exits_2() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+/// A serial chain of `n` revolute joints as a description.
+fn chain_toml(n: usize) -> String {
+    let mut text = String::from("name = \"chain\"\n\n[[links]]\nname = \"l0\"\n");
+    for i in 1..=n {
+        text.push_str(&format!(
+            "\n[[links]]\nname = \"l{i}\"\nmass = 0.1\ncom = [0.01, 0.0, 0.0]\n\
+             inertia = {{ ixx = 0.001, iyy = 0.001, izz = 0.001 }}\n"
+        ));
+    }
+    for i in 1..=n {
+        text.push_str(&format!(
+            "\n[[joints]]\nname = \"j{i}\"\ntype = \"revolute\"\nparent = \"l{}\"\n\
+             child = \"l{i}\"\norigin = {{ xyz = [0.01, 0.0, 0.0] }}\naxis = [0.0, 0.0, 1.0]\n",
+            i - 1
+        ));
+    }
+    text
+}
+
+/// Loading is linear in the chain (the criterion benchmark `loading`
+/// measures it); here, a long chain loads and its joints come in order,
+/// and a description larger than any arm's is refused before it is read.
+#[test]
+fn long_and_oversized_descriptions() {
+    let dir = Dir::new();
+    let long = dir.write("long.toml", &chain_toml(2000));
+    let d = codegen::Description::load(&long).unwrap();
+    assert_eq!(d.dof(), 2000);
+    let last = d.chain().free_bodies().last().unwrap();
+    assert_eq!(last.joint, "j2000");
+
+    let big = dir.path().join("big.toml");
+    let file = std::fs::File::create(&big).unwrap();
+    file.set_len(17 << 20).unwrap();
+    let run = sdnn(&["evaluate", "--model", s(&big), "--data", s(&big)]);
+    refused(&run, "larger than 16 MiB");
+    let e = codegen::Description::load(&big).unwrap_err().to_string();
+    assert!(e.contains("larger than 16 MiB"), "{e}");
+}
+
+/// 100,000 links without joints: the error names ten and counts the rest.
+#[test]
+fn unconnected_links_are_counted_not_listed() {
+    let mut text = String::from("[[links]]\nname = \"l0\"\n");
+    for i in 1..100_000 {
+        text.push_str(&format!("[[links]]\nname = \"l{i}\"\n"));
+    }
+    let e = codegen::Description::parse(&text, "m", Path::new("m.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("100000 links have no parent") && e.contains("and 99990 more"),
+        "{e}"
+    );
+    assert!(e.len() < 1000, "{} bytes", e.len());
+}
+
+/// The simulated seconds shrink with the cube of the plant's joints.
+#[test]
+fn simulate_is_bounded_by_joints_and_steps() {
+    let dir = Dir::new();
+    let plant = dir.write("chain30.toml", &chain_toml(30));
+    let out = dir.path().join("out");
+    let run = sdnn(&[
+        "simulate",
+        "--plant",
+        s(&plant),
+        "--nominal",
+        s(&plant),
+        "--count",
+        "1",
+        "--duration",
+        "600",
+        "--out",
+        s(&out),
+    ]);
+    refused(&run, "30-joint plant");
+    assert!(!out.exists());
+}

@@ -79,7 +79,7 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         (None, Some(path)) => path,
         (None, None) => PathBuf::from(format!("models/{}.toml", model.name())),
     };
-    let on_disk = std::fs::read_to_string(&toml)
+    let on_disk = crate::bounded::read_description(&toml)
         .with_context(|| format!("{}: cannot read", toml.display()))?;
     if let Err(e) = codegen::Description::parse(&on_disk, model.name(), &toml) {
         bail!(

@@ -66,6 +66,28 @@ pub struct SimulateArgs {
 /// CSV at 1 kHz for 3 joints): beyond it, run it several times.
 const MOST_SIMULATED_SECONDS: f64 = 36_000.0;
 
+/// Joints up to which a run may simulate [`MOST_SIMULATED_SECONDS`] (a
+/// Panda); beyond, the seconds shrink with the cube of the joint count,
+/// as the cost of a step does (the forward dynamics' mass matrix: a
+/// 1,000-joint model took 4.8 s per 1 ms step).
+const FULL_BUDGET_JOINTS: usize = 7;
+
+/// Refuses `seconds` of simulation of a `dof`-joint plant beyond the
+/// budget; `what` says which options made them.
+fn check_simulated_seconds(what: &str, seconds: f64, dof: usize) -> Result<()> {
+    let scale = (dof.max(FULL_BUDGET_JOINTS) as f64 / FULL_BUDGET_JOINTS as f64).powi(3);
+    let most = MOST_SIMULATED_SECONDS / scale;
+    if seconds > most {
+        bail!(
+            "{what} is {seconds} s of simulation of a {dof}-joint plant, more than one run \
+             simulates ({most:.3e} s: {MOST_SIMULATED_SECONDS} s up to {FULL_BUDGET_JOINTS} \
+             joints, shrinking with the cube of the joint count, as the cost of a step grows): \
+             simulate fewer or shorter trajectories"
+        );
+    }
+    Ok(())
+}
+
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let total = args.count as f64 * args.duration;
     if total > MOST_SIMULATED_SECONDS {
@@ -78,6 +100,8 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         );
     }
     let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    let what = format!("--count {} x --duration {}", args.count, args.duration);
+    check_simulated_seconds(&what, total, plant.dof())?;
     crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let config = StudyConfig {

@@ -169,6 +169,11 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
             (plant, plant)
         }
     };
+    let what = format!(
+        "--trajectories {} x --duration {}",
+        args.trajectories, args.duration
+    );
+    check_simulated_seconds(&what, recorded, plant.dof())?;
     let config = StudyConfig {
         trajectories: args.trajectories,
         train: args.train,

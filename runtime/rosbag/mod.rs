@@ -208,7 +208,7 @@ type Raw = Vec<(u64, Vec<u8>)>;
 /// Reads the joint states of one topic; see the module docs for the error conventions.
 pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointStates, BagError> {
     crate::output::note_input(path);
-    let bytes = std::fs::read(path).map_err(|source| BagError::Io {
+    let bytes = crate::bounded::read(path).map_err(|source| BagError::Io {
         path: path.into(),
         source,
     })?;

@@ -421,7 +421,7 @@ pub fn apply_to_file(
     joints: &[&str],
     last_link: &str,
 ) -> Result<Applied> {
-    let source = std::fs::read_to_string(path)
+    let source = crate::bounded::read_description(path)
         .with_context(|| format!("{}: cannot read", path.display()))?;
     let updated = apply_to_text(&source, diagnosis, joints, last_link)
         .with_context(|| path.display().to_string())?;
