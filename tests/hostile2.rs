@@ -207,3 +207,26 @@ fn simulate_is_bounded_by_joints_and_steps() {
     refused(&run, "30-joint plant");
     assert!(!out.exists());
 }
+
+/// A URDF of `n` links, unconnected (no joints).
+fn loose_urdf(n: usize) -> String {
+    let links: String = (0..n).map(|i| format!("<link name=\"l{i}\"/>\n")).collect();
+    format!("<robot name=\"r\">\n{links}</robot>\n")
+}
+
+/// URDF link counts are bounded with a message saying so, and an error
+/// about thousands of links names ten.
+#[test]
+fn urdf_link_counts_are_bounded_and_long_lists_cut() {
+    let dir = Dir::new();
+    let many = dir.write("many.urdf", &loose_urdf(10_001));
+    refused(
+        &sdnn(&["import-urdf", s(&many)]),
+        "10001 <link> elements, more than this importer takes (10000",
+    );
+    let loose = dir.write("loose.urdf", &loose_urdf(5_000));
+    let run = sdnn(&["import-urdf", s(&loose)]);
+    refused(&run, "5000 links have no parent (l0, l1,");
+    assert!(String::from_utf8_lossy(&run.stderr).contains("and 4990 more"));
+    assert!(run.stderr.len() < 1000, "{} bytes", run.stderr.len());
+}
