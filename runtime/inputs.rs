@@ -133,8 +133,14 @@ impl InputArgs {
     /// Reads raw recordings (`joints`: the model's joint names, if known):
     /// CSV files, or ROS 2 bags (`.mcap`) of sensor_msgs/JointState, read
     /// by the model's joint names when the bag carries them.
+    /// One recording given twice is refused (see [`reject_repeated`]).
     pub fn read_all(&self, paths: &[PathBuf], joints: Joints) -> Result<Vec<Trajectory>> {
-        paths.iter().map(|path| self.read(path, joints)).collect()
+        let recordings = paths
+            .iter()
+            .map(|path| self.read(path, joints))
+            .collect::<Result<Vec<_>>>()?;
+        reject_repeated(paths, &recordings)?;
+        Ok(recordings)
     }
 
     /// One recording (see [`InputArgs::read_all`]), its values checked
@@ -208,6 +214,23 @@ impl InputArgs {
         }
         Ok(read_csv(path, &options)?)
     }
+}
+
+/// Refuses two files that hold the same samples (one recording given
+/// twice, under two names or one): it would count twice in a fit, and in
+/// a held-out split it would be tested on itself.
+pub fn reject_repeated(paths: &[PathBuf], recordings: &[Trajectory]) -> Result<()> {
+    for (b, second) in recordings.iter().enumerate() {
+        let same = |first: &Trajectory| first.t() == second.t() && first.q() == second.q();
+        if let Some(a) = recordings[..b].iter().position(same) {
+            bail!(
+                "{} and {} hold the same samples: pass each recording once",
+                paths[a].display(),
+                paths[b].display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Preprocessing options: a preset, and settings in physical units.

@@ -230,3 +230,50 @@ fn urdf_link_counts_are_bounded_and_long_lists_cut() {
     assert!(String::from_utf8_lossy(&run.stderr).contains("and 4990 more"));
     assert!(run.stderr.len() < 1000, "{} bytes", run.stderr.len());
 }
+
+/// One recording given twice (under two names) is refused by every
+/// command that fits or evaluates on several, naming both files.
+#[test]
+fn one_recording_given_twice_is_refused() {
+    let dir = Dir::new();
+    let [data, _] = recordings(&dir);
+    let copy = dir.path().join("copy.csv");
+    std::fs::copy(&data, &copy).unwrap();
+    let net = dir.path().join("net.json");
+    let out = dir.path().join("study");
+    let model = ["--model", "kinova_gen3_lite_3dof"];
+    let both = [s(&data), s(&copy)];
+    let pre = dir.path().join("pre");
+    let run = sdnn(&[&["preprocess"][..], &both, &["--out", s(&pre)]].concat());
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let (pre_data, pre_copy) = (pre.join("trajectory_01.csv"), pre.join("copy.csv"));
+    let cases: Vec<Vec<&str>> = vec![
+        [&["train"][..], &both, &["--out", s(&net)]].concat(),
+        vec![
+            "train",
+            "--preprocessed",
+            s(&pre_data),
+            s(&pre_copy),
+            "--out",
+            s(&net),
+        ],
+        [&["evaluate"][..], &model, &["--data"], &both].concat(),
+        [&["diagnose"][..], &model, &["--data"], &both].concat(),
+        [
+            &["study"][..],
+            &model,
+            &["--test-from", "2", "--out", s(&out), "--data"],
+            &both,
+        ]
+        .concat(),
+    ];
+    for args in cases {
+        let run = sdnn(&args);
+        refused(&run, "copy.csv hold the same samples");
+    }
+    assert!(!net.exists());
+}

@@ -226,7 +226,8 @@ pub fn train(args: &TrainArgs) -> Result<()> {
         args.data
             .iter()
             .map(|path| load_preprocessed(path, None, &args.input))
-            .collect::<Result<Vec<_>>>()?
+            .collect::<Result<Vec<_>>>()
+            .and_then(|all| crate::inputs::reject_repeated(&args.data, &all).map(|()| all))?
     } else {
         let (trajectories, pipeline) = load(&args.data, None, &args.input, &args.filter)?;
         eprintln!("{}", pipeline.summary());
