@@ -277,3 +277,54 @@ fn one_recording_given_twice_is_refused() {
     }
     assert!(!net.exists());
 }
+
+/// `import-log` refuses a time step the readers refuse (1e-7 s), naming
+/// the time file and line, and takes a byte-order mark and trailing blank
+/// lines.
+#[test]
+fn import_log_writes_only_what_the_readers_take() {
+    let dir = Dir::new();
+    let time = dir.write("t.txt", "\u{feff}0\n0.0000001\n0.001\n\n\n");
+    let q = dir.write("q.txt", "0.1\n0.2\n0.3\n");
+    let qd = dir.write("qd.txt", "0\n0\n0\n");
+    let tau = dir.write("tau.txt", "1\n2\n3\n\n");
+    let out = dir.path().join("log.csv");
+    let args = |t: &Path| {
+        vec![
+            "import-log".to_string(),
+            "--time".into(),
+            s(t).into(),
+            "--positions".into(),
+            s(&q).into(),
+            "--velocities".into(),
+            s(&qd).into(),
+            "--torques".into(),
+            s(&tau).into(),
+            "--dof".into(),
+            "1".into(),
+            "--out".into(),
+            s(&out).into(),
+        ]
+    };
+    let run = |t: &Path| {
+        let a = args(t);
+        sdnn(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    refused(
+        &run(&time),
+        "t.txt: line 2: 1e-7 s after the previous sample",
+    );
+    assert!(!out.exists());
+    let time = dir.write("t.txt", "\u{feff}0\n0.001\n0.002\n\n\n");
+    let ok = run(&time);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    dir.write("tau.txt", "1\n2e7\n3\n");
+    refused(
+        &run(&time),
+        "tau.txt: line 2 (sample 2, joint 1): torque (N m) 2e7",
+    );
+}

@@ -23,7 +23,7 @@ mod sampling;
 use read::*;
 pub use read::{is_contract_column, read_csv, read_states_csv, read_torques_csv};
 use sampling::*;
-pub use sampling::{resample, uniform};
+pub use sampling::{MIN_STEP, resample, uniform};
 
 /// Relative deviation of a time step from the median step above which the
 /// sampling is treated as non-uniform.
