@@ -328,3 +328,79 @@ fn import_log_writes_only_what_the_readers_take() {
         "tau.txt: line 2 (sample 2, joint 1): torque (N m) 2e7",
     );
 }
+
+/// `reproduce --map` takes --seeds, --epochs, --duration and --splits (a
+/// run that took 474 s at the map's defaults takes about a second) and
+/// refuses the options its grid fixes by name.
+#[test]
+fn reproduce_map_honours_or_refuses_its_options() {
+    let dir = Dir::new();
+    let out = dir.path().join("map");
+    refused(
+        &sdnn(&[
+            "reproduce",
+            "--map",
+            "--trajectories",
+            "3",
+            "--out",
+            s(&out),
+        ]),
+        "--trajectories does not apply to --map",
+    );
+    let run = sdnn(&[
+        "reproduce",
+        "--map",
+        "--seeds",
+        "1",
+        "--epochs",
+        "1",
+        "--duration",
+        "2",
+        "--splits",
+        "1",
+        "--format",
+        "json",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let cells: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let cells = cells.as_array().unwrap();
+    assert_eq!(cells.len(), 48);
+    // One seed and one split: no spread.
+    assert!(
+        cells
+            .iter()
+            .all(|c| c["sdnn_over_analytical"]["std"] == 0.0)
+    );
+}
+
+/// `simulate --count 2` into a folder of 5 recordings is refused, naming
+/// the 3 it would leave stale; rewriting the same count is fine.
+#[test]
+fn simulate_refuses_to_leave_stale_recordings() {
+    let dir = Dir::new();
+    let out = dir.path().join("rec");
+    let sim = |count: &str| {
+        sdnn(&[
+            "simulate",
+            "--count",
+            count,
+            "--duration",
+            "1",
+            "--out",
+            s(&out),
+        ])
+    };
+    assert!(sim("5").status.success());
+    refused(
+        &sim("2"),
+        "holds 3 recording(s) of an earlier run beyond --count 2 (trajectory_03.csv",
+    );
+    assert!(sim("5").status.success());
+    assert!(out.join("trajectory_05.csv").exists());
+}

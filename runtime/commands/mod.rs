@@ -104,6 +104,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     check_simulated_seconds(&what, total, plant.dof())?;
     crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    refuse_stale_recordings(&args.out, args.count)?;
     let config = StudyConfig {
         duration: args.duration,
         ..StudyConfig::default()
@@ -130,6 +131,36 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         args.out.display()
     ))?;
     Ok(())
+}
+
+/// Refuses a folder holding recordings `trajectory_NN.csv` numbered
+/// beyond `count` (an earlier, larger run's): this run would leave them
+/// beside its own, and a later `train DIR/*.csv` would take them too.
+fn refuse_stale_recordings(dir: &Path, count: usize) -> Result<()> {
+    let entries = std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
+    let mut stale: Vec<String> = entries
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|name| {
+            let number = name
+                .strip_prefix("trajectory_")
+                .and_then(|n| n.strip_suffix(".csv"))
+                .and_then(|n| n.parse::<usize>().ok());
+            number.is_some_and(|n| n > count)
+        })
+        .collect();
+    if stale.is_empty() {
+        return Ok(());
+    }
+    stale.sort();
+    let shown = stale.len().min(5);
+    bail!(
+        "{} holds {} recording(s) of an earlier run beyond --count {count} ({}{}): this run would \
+         leave them beside its own; remove them or choose another --out",
+        dir.display(),
+        stale.len(),
+        stale[..shown].join(", "),
+        if stale.len() > shown { ", ..." } else { "" }
+    )
 }
 
 #[derive(Debug, Args)]
