@@ -404,3 +404,25 @@ fn simulate_refuses_to_leave_stale_recordings() {
     assert!(sim("5").status.success());
     assert!(out.join("trajectory_05.csv").exists());
 }
+
+/// A duplicate TOML key is named, an empty name refused, and a payload
+/// on the base (which changes no torque) refused.
+#[test]
+fn duplicate_keys_empty_names_and_a_payload_on_the_base() {
+    let dup = "[[links]]\nname = \"a\"\nmass = 1.0\nmass = 2.0\n";
+    let e = codegen::Description::parse(dup, "m", Path::new("m.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("m.toml:4:1: duplicate key `mass`"), "{e}");
+    let empty = "[[links]]\nname = \"b\"\n[[links]]\nname = \"c\"\nmass = 1.0\ninertia = { ixx = 0.1, iyy = 0.1, izz = 0.1 }\n\
+                 [[joints]]\nname = \" \"\ntype = \"revolute\"\nparent = \"b\"\nchild = \"c\"\n";
+    let e = codegen::Description::parse(empty, "m", Path::new("m.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("joints[0].name") && e.contains("empty"), "{e}");
+    let urdf = crate::util::root().join("data/gen3_lite/GEN3-LITE.urdf");
+    refused(
+        &sdnn(&["import-urdf", s(&urdf), "--attach", "BASE:mass=5"]),
+        "link 'BASE' does not move",
+    );
+}

@@ -86,7 +86,7 @@ impl Description {
                 path: path.to_path_buf(),
                 line,
                 column,
-                message: e.message().to_string(),
+                message: with_key(e.message(), e.span().and_then(|s| source.get(s))),
             }
         })?;
         let mut description = Description {
@@ -323,4 +323,17 @@ fn read_bounded(path: &Path) -> std::io::Result<String> {
         ));
     }
     Ok(text)
+}
+
+/// The parser's message, naming the key for a duplicate key (the message
+/// alone says "duplicate key" and the span points at it).
+fn with_key(message: &str, span: Option<&str>) -> String {
+    match span.map(str::trim) {
+        Some(key)
+            if message.starts_with("duplicate key") && !key.is_empty() && key.len() <= 200 =>
+        {
+            format!("{} `{key}`", message.trim_end())
+        }
+        _ => message.to_string(),
+    }
 }
