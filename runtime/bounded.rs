@@ -53,31 +53,66 @@ fn too_long() -> io::Error {
 
 /// The bytes of `path`, refused beyond [`MAX_FILE_BYTES`].
 pub fn read(path: &Path) -> io::Result<Vec<u8>> {
+    read_at_most(path, MAX_FILE_BYTES)
+}
+
+/// The bytes of `path`, refused beyond `limit` bytes (read no further).
+pub fn read_at_most(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
     let mut bytes = Vec::new();
     std::fs::File::open(path)?
-        .take(MAX_FILE_BYTES + 1)
+        .take(limit + 1)
         .read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > MAX_FILE_BYTES {
+    if bytes.len() as u64 > limit {
         return Err(io::Error::new(
             io::ErrorKind::InvalidData,
             format!(
-                "larger than {} GiB: not a file this command reads (a device?)",
-                MAX_FILE_BYTES >> 30
+                "larger than {}: not a file this command reads (a device?)",
+                size(limit)
             ),
         ));
     }
     Ok(bytes)
 }
 
+/// `bytes` in MiB or GiB.
+fn size(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{} GiB", bytes >> 30)
+    } else {
+        format!("{} MiB", bytes >> 20)
+    }
+}
+
 /// The text of `path` (UTF-8), refused beyond [`MAX_FILE_BYTES`].
 pub fn read_to_string(path: &Path) -> io::Result<String> {
-    String::from_utf8(read(path)?)
+    read_to_string_at_most(path, MAX_FILE_BYTES)
+}
+
+/// The text of `path` (UTF-8), refused beyond `limit` bytes.
+pub fn read_to_string_at_most(path: &Path, limit: u64) -> io::Result<String> {
+    String::from_utf8(read_at_most(path, limit)?)
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("not UTF-8 text: {e}")))
+}
+
+/// The text of a robot description, refused beyond
+/// [`codegen::description::MAX_DESCRIPTION_BYTES`].
+pub fn read_description(path: &Path) -> io::Result<String> {
+    read_to_string_at_most(path, codegen::description::MAX_DESCRIPTION_BYTES)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_over_its_limit_is_refused_before_it_is_read_whole() {
+        let e = read_at_most(Path::new("/dev/zero"), 1 << 20).unwrap_err();
+        assert!(e.to_string().contains("larger than 1 MiB"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.toml");
+        std::fs::write(&path, "x = 1\n").unwrap();
+        assert_eq!(read_description(&path).unwrap(), "x = 1\n");
+    }
 
     #[test]
     fn an_endless_line_is_refused_and_ordinary_lines_pass() {

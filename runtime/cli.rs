@@ -68,7 +68,7 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         Err(e) if e.use_stderr() => bail!("{}", e.to_string().trim_end()),
         Err(e) => {
             // --help and --version
-            print!("{e}");
+            crate::output::print(&e.to_string())?;
             return Ok(());
         }
     };
@@ -106,18 +106,22 @@ fn models(format: Format) -> Result<()> {
                     })
                 })
                 .collect();
-            println!("{}", serde_json::to_string_pretty(&list)?);
+            crate::output::print_line(&serde_json::to_string_pretty(&list)?)?;
         }
         Format::Text => {
             let width = all.iter().map(|m| m.name().len()).max().unwrap_or(0);
-            for m in all {
-                println!(
-                    "{:<width$} {} DOF  joints: {}",
-                    m.name(),
-                    m.dof(),
-                    m.joint_names().join(", ")
-                );
-            }
+            let lines: Vec<String> = all
+                .iter()
+                .map(|m| {
+                    format!(
+                        "{:<width$} {} DOF  joints: {}\n",
+                        m.name(),
+                        m.dof(),
+                        m.joint_names().join(", ")
+                    )
+                })
+                .collect();
+            crate::output::print(&lines.concat())?;
         }
     }
     Ok(())

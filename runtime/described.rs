@@ -32,7 +32,7 @@ impl Described {
     /// Reads and validates the description at `path` (named by its stem).
     pub fn load(path: &Path) -> Result<&'static Described> {
         crate::output::note_input(path);
-        let text = std::fs::read_to_string(path)
+        let text = crate::bounded::read_description(path)
             .with_context(|| format!("reading model description {}", path.display()))?;
         let stem = path
             .file_stem()

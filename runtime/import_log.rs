@@ -160,7 +160,14 @@ fn read_values(path: &Path) -> Result<Vec<f64>, ImportLogError> {
         path: path.to_path_buf(),
         source,
     })?;
-    let body = bytes.strip_suffix(b"\n").unwrap_or(&bytes);
+    // A byte-order mark (Windows editors) and blank lines at the end are
+    // not samples; a blank line between samples stays an error.
+    let body = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+    let end = body
+        .iter()
+        .rposition(|b| !b.is_ascii_whitespace())
+        .map_or(0, |i| i + 1);
+    let body = &body[..end];
     if body.is_empty() {
         return Ok(Vec::new());
     }
@@ -332,6 +339,20 @@ mod tests {
     }
 
     #[test]
+    fn accepts_a_byte_order_mark_and_trailing_blank_lines() {
+        let (_dir, src) = sources(
+            2,
+            "\u{feff}0\n0.5\n\n\r\n  \n",
+            "\u{feff}1\n2\n3\n4\n\n",
+            QD,
+            TAU,
+        );
+        let c = read_line_major(&src).unwrap();
+        assert_eq!(c.t, vec![0.0, 0.5]);
+        assert_eq!(c.q[0], vec![1.0, 2.0]);
+    }
+
+    #[test]
     fn rejects_non_numbers_with_file_and_line() {
         let msg = read_err(2, T, "0.1\n0.2\nabc\n0.4\n", QD, TAU);
         assert_mentions(&msg, &["positions.txt", "line 3", "\"abc\""]);
@@ -341,8 +362,9 @@ mod tests {
     fn rejects_blank_lines() {
         let msg = read_err(2, T, Q, "1\n\n3\n4\n", TAU);
         assert_mentions(&msg, &["velocity.txt", "line 2", "blank"]);
-        let msg = read_err(2, "0\n0.001\n\n", Q, QD, TAU);
-        assert_mentions(&msg, &["time.txt", "line 3", "blank"]);
+        // Between samples, not at the end (trailing blank lines are no samples).
+        let msg = read_err(2, "0\n\n0.001\n", Q, QD, TAU);
+        assert_mentions(&msg, &["time.txt", "line 2", "blank"]);
     }
 
     #[test]

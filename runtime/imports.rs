@@ -104,7 +104,7 @@ pub fn import_log_command(args: &ImportLogArgs) -> Result<()> {
         torques: args.torques.clone(),
         dof: args.dof,
     })?;
-    plausible_log(&columns)?;
+    plausible_log(args, &columns)?;
     let mut csv = Vec::new();
     write_contract_csv(&mut csv, &columns)?;
     emit(args.out.as_ref(), &csv)?;
@@ -119,31 +119,61 @@ pub fn import_log_command(args: &ImportLogArgs) -> Result<()> {
     Ok(())
 }
 
-/// The readers' bounds on what a recording may hold, checked before the
-/// CSV is written (it would be refused when read).
-fn plausible_log(columns: &Columns) -> Result<()> {
-    use crate::trajectory::{PLAUSIBLE_ANGLE, PLAUSIBLE_TIME, PLAUSIBLE_TORQUE};
+/// The readers' bounds on what a recording may hold (magnitudes and the
+/// shortest time step), checked before the CSV is written: it would be
+/// refused when read. Errors name the channel's file and line.
+fn plausible_log(args: &ImportLogArgs, columns: &Columns) -> Result<()> {
+    use crate::trajectory::{MIN_STEP, PLAUSIBLE_ANGLE, PLAUSIBLE_TIME, PLAUSIBLE_TORQUE};
     let channels = [
-        ("positions (rad)", &columns.q, PLAUSIBLE_ANGLE),
-        ("velocities (rad/s)", &columns.qd, PLAUSIBLE_ANGLE),
-        ("torques (N m)", &columns.tau, PLAUSIBLE_TORQUE),
+        (
+            "position (rad)",
+            &args.positions,
+            &columns.q,
+            PLAUSIBLE_ANGLE,
+        ),
+        (
+            "velocity (rad/s)",
+            &args.velocities,
+            &columns.qd,
+            PLAUSIBLE_ANGLE,
+        ),
+        (
+            "torque (N m)",
+            &args.torques,
+            &columns.tau,
+            PLAUSIBLE_TORQUE,
+        ),
     ];
+    let time = args.time.display();
     for (k, &t) in columns.t.iter().enumerate() {
         if t.is_nan() || t.abs() > PLAUSIBLE_TIME {
             anyhow::bail!(
-                "sample {}: time {t:e} s is beyond any log (|t| <= {PLAUSIBLE_TIME:e} s)",
+                "{time}: line {}: time {t:e} s is beyond any log (|t| <= {PLAUSIBLE_TIME:e} s)",
                 k + 1
             );
         }
-        for (what, rows, limit) in &channels {
+        if let Some(&previous) = k.checked_sub(1).and_then(|p| columns.t.get(p))
+            && t - previous < MIN_STEP
+        {
+            anyhow::bail!(
+                "{time}: line {}: {:e} s after the previous sample; steps below {MIN_STEP:e} s \
+                 (1 MHz) are not a joint log and the readers refuse them (time in another unit? \
+                 the contract is seconds)",
+                k + 1,
+                t - previous
+            );
+        }
+        for (what, path, rows, limit) in &channels {
             if let Some((j, v)) = rows[k]
                 .iter()
                 .enumerate()
                 .find(|(_, v)| v.is_nan() || v.abs() > *limit)
             {
                 anyhow::bail!(
-                    "sample {}, joint {}: {what} {v:e} is beyond any arm (|value| <= {limit:e}); a \
-                     logging fault?",
+                    "{}: line {} (sample {}, joint {}): {what} {v:e} is beyond any arm \
+                     (|value| <= {limit:e}); a logging fault?",
+                    path.display(),
+                    k * args.dof + j + 1,
                     k + 1,
                     j + 1
                 );

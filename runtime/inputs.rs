@@ -10,8 +10,11 @@ use nalgebra::DMatrix;
 use crate::args::AngleArg;
 use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
 use crate::ranges;
-use crate::rosbag::{BagOptions, JointStates, read_joint_states};
+use crate::rosbag::{BagOptions, JointOrder, JointStates, read_joint_states};
 use crate::trajectory::{ReadOptions, Trajectory, TrajectoryError, read_csv, uniform};
+
+/// The model's joint names, base first, when the command has a model.
+pub type Joints<'a> = Option<&'a [&'static str]>;
 
 /// Options of reading measured CSV files.
 #[derive(Debug, Args, Clone)]
@@ -34,7 +37,9 @@ pub struct InputArgs {
     #[arg(long)]
     pub topic: Option<String>,
     /// ROS 2 bags: the joints to read, in the model's order, comma
-    /// separated [default: the first message's joints, in its order].
+    /// separated (to choose or rename) [default: the model's joints by
+    /// name when the bag names them all, else the first message's joints
+    /// in its order].
     #[arg(long, value_delimiter = ',')]
     pub joints: Option<Vec<String>>,
     /// Divide joint J's logged torque by S (a torque sensor's scale error,
@@ -125,16 +130,23 @@ impl InputArgs {
         }
     }
 
-    /// Reads raw recordings (`dof`: the model's joint count, if known): CSV
-    /// files, or ROS 2 bags (`.mcap`) of sensor_msgs/JointState.
-    pub fn read_all(&self, paths: &[PathBuf], dof: Option<usize>) -> Result<Vec<Trajectory>> {
-        paths.iter().map(|path| self.read(path, dof)).collect()
+    /// Reads raw recordings (`joints`: the model's joint names, if known):
+    /// CSV files, or ROS 2 bags (`.mcap`) of sensor_msgs/JointState, read
+    /// by the model's joint names when the bag carries them.
+    /// One recording given twice is refused (see [`reject_repeated`]).
+    pub fn read_all(&self, paths: &[PathBuf], joints: Joints) -> Result<Vec<Trajectory>> {
+        let recordings = paths
+            .iter()
+            .map(|path| self.read(path, joints))
+            .collect::<Result<Vec<_>>>()?;
+        reject_repeated(paths, &recordings)?;
+        Ok(recordings)
     }
 
     /// One recording (see [`InputArgs::read_all`]), its values checked
     /// against [`PLAUSIBLE`].
-    pub fn read(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
-        let traj = self.read_unchecked(path, dof)?;
+    pub fn read(&self, path: &Path, joints: Joints) -> Result<Trajectory> {
+        let traj = self.read_unchecked(path, joints)?;
         check_plausible(path, &traj)?;
         warn_slow_sampling(path, traj.t());
         if self.torque_scales.is_empty() && self.torque_delay.is_none() {
@@ -148,8 +160,8 @@ impl InputArgs {
     /// Reads at the given `--resample` rate; without one, a jittery file
     /// is resampled at its median rate (said on standard error), since a
     /// real log's timestamps rarely tick evenly.
-    fn read_unchecked(&self, path: &Path, dof: Option<usize>) -> Result<Trajectory> {
-        match self.read_at(path, dof, self.resample) {
+    fn read_unchecked(&self, path: &Path, joints: Joints) -> Result<Trajectory> {
+        match self.read_at(path, joints, self.resample) {
             Err(e) if self.resample.is_none() => match e.downcast_ref::<TrajectoryError>() {
                 Some(TrajectoryError::NonUniformSampling {
                     min_step,
@@ -174,7 +186,7 @@ impl InputArgs {
                         1e3 * min_step,
                         1e3 * max_step
                     );
-                    self.read_at(path, dof, Some(hz))
+                    self.read_at(path, joints, Some(hz))
                 }
                 _ => Err(e),
             },
@@ -182,15 +194,10 @@ impl InputArgs {
         }
     }
 
-    fn read_at(
-        &self,
-        path: &Path,
-        dof: Option<usize>,
-        resample: Option<f64>,
-    ) -> Result<Trajectory> {
+    fn read_at(&self, path: &Path, joints: Joints, resample: Option<f64>) -> Result<Trajectory> {
         let options = ReadOptions {
             resample_hz: resample,
-            ..self.options(dof, 2)
+            ..self.options(joints.map(<[_]>::len), 2)
         };
         if path
             .extension()
@@ -199,12 +206,31 @@ impl InputArgs {
             let bag = BagOptions {
                 topic: self.topic.clone(),
                 joints: self.joints.clone(),
+                model: joints.map(|names| names.iter().map(|n| n.to_string()).collect()),
             };
             let states = read_joint_states(path, &bag)?;
+            note_bag_selection(path, &states, joints);
             return joint_states_trajectory(path, states, &options);
         }
         Ok(read_csv(path, &options)?)
     }
+}
+
+/// Refuses two files that hold the same samples (one recording given
+/// twice, under two names or one): it would count twice in a fit, and in
+/// a held-out split it would be tested on itself.
+pub fn reject_repeated(paths: &[PathBuf], recordings: &[Trajectory]) -> Result<()> {
+    for (b, second) in recordings.iter().enumerate() {
+        let same = |first: &Trajectory| first.t() == second.t() && first.q() == second.q();
+        if let Some(a) = recordings[..b].iter().position(same) {
+            bail!(
+                "{} and {} hold the same samples: pass each recording once",
+                paths[a].display(),
+                paths[b].display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Preprocessing options: a preset, and settings in physical units.
@@ -330,11 +356,11 @@ impl FilterArgs {
 /// with one pipeline resolved on all of them.
 pub fn load(
     paths: &[PathBuf],
-    dof: Option<usize>,
+    joints: Joints,
     input: &InputArgs,
     filter: &FilterArgs,
 ) -> Result<(Vec<Trajectory>, Pipeline)> {
-    let raw = input.read_all(paths, dof)?;
+    let raw = input.read_all(paths, joints)?;
     let pipeline = filter.resolve(&raw)?;
     let processed = raw
         .iter()
@@ -395,6 +421,33 @@ fn check_plausible(path: &Path, traj: &Trajectory) -> Result<()> {
     Ok(())
 }
 
+/// Says on standard error what was read from a bag when it is not plain:
+/// another publisher's messages skipped, or joints paired with the
+/// model's by position because no name matched.
+fn note_bag_selection(path: &Path, states: &JointStates, model: Joints) {
+    if states.ignored_messages > 0 {
+        eprintln!(
+            "{}: {} message(s) carrying none of the joints read ({}) were skipped (another \
+             publisher on the topic)",
+            path.display(),
+            states.ignored_messages,
+            states.joints.join(", ")
+        );
+    }
+    if let Some(names) = model
+        && states.order == JointOrder::FirstMessage
+        && states.joints.len() == names.len()
+    {
+        eprintln!(
+            "{}: no joint name of the bag ({}) is a model joint's ({}): read in the bag's order; \
+             --joints NAME,... chooses the bag's joints in the model's order",
+            path.display(),
+            states.joints.join(", "),
+            names.join(", ")
+        );
+    }
+}
+
 /// A bag's joint states in the trajectory contract (ROS units are SI).
 fn joint_states_trajectory(
     path: &Path,
@@ -404,8 +457,8 @@ fn joint_states_trajectory(
     let n = states.joints.len();
     if let Some(dof) = options.dof.filter(|&d| d != n) {
         bail!(
-            "{}: the bag's JointState has {n} joints ({}), the model {dof}: pick them with \
-             --joints NAME,NAME,... in the model's order",
+            "{}: the bag's JointState has {n} joints ({}), the model {dof}: pick the model's \
+             joints with --joints NAME,NAME,... in the model's order",
             path.display(),
             states.joints.join(", ")
         );
@@ -426,17 +479,17 @@ fn joint_states_trajectory(
 /// one at a time).
 pub fn load_one(
     path: &Path,
-    dof: Option<usize>,
+    joints: Joints,
     input: &InputArgs,
     filter: &FilterArgs,
 ) -> Result<(Trajectory, Pipeline)> {
-    let (mut trajectories, pipeline) = load(&[path.to_path_buf()], dof, input, filter)?;
+    let (mut trajectories, pipeline) = load(&[path.to_path_buf()], joints, input, filter)?;
     Ok((trajectories.remove(0), pipeline))
 }
 
 /// A file that already carries filtered qd and qdd (`--preprocessed`).
-pub fn load_preprocessed(path: &Path, dof: Option<usize>, input: &InputArgs) -> Result<Trajectory> {
-    let traj = read_csv(path, &input.options(dof, 2))?;
+pub fn load_preprocessed(path: &Path, joints: Joints, input: &InputArgs) -> Result<Trajectory> {
+    let traj = read_csv(path, &input.options(joints.map(<[_]>::len), 2))?;
     if traj.qdd().is_none() {
         bail!(
             "{}: --preprocessed needs qdd1..qddN columns",

@@ -47,6 +47,21 @@ pub fn is_stdout(path: &Path) -> bool {
     path == Path::new("-")
 }
 
+/// Prints `text` on standard output and flushes it. A failed write (a
+/// full disk, a closed descriptor) is an error the command returns, where
+/// `print!` would panic; a closed pipe stays quiet (`main`).
+pub fn print(text: &str) -> io::Result<()> {
+    let mut out = io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| io::Error::new(e.kind(), format!("writing to standard output: {e}")))
+}
+
+/// [`print`] with a line end.
+pub fn print_line(text: &str) -> io::Result<()> {
+    print(&format!("{text}\n"))
+}
+
 /// Creates the output folder `path` (and its parents). `-` is refused: a
 /// folder of files cannot go to standard output.
 pub fn create_folder(path: &Path) -> io::Result<()> {

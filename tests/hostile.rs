@@ -31,19 +31,27 @@ fn tau(input: &Path, output: Option<&Path>) -> Output {
     sdnn(&args)
 }
 
-/// Two small preprocessed 2-joint recordings for `train`.
+/// Two small preprocessed 2-joint recordings for `train` (different
+/// samples: one recording given twice is refused).
 fn two_recordings(dir: &Dir) -> (std::path::PathBuf, std::path::PathBuf) {
-    let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
-    for k in 0..400 {
-        let t = f64::from(k) * 0.01;
-        rows.push_str(&format!(
-            "{t},{},{},0,0,0,0,{},0\n",
-            t.sin(),
-            t.cos(),
-            t.sin()
-        ));
-    }
-    (dir.write("d.csv", &rows), dir.write("e.csv", &rows))
+    let rows = |phase: f64| {
+        let mut rows = String::from("t,q1,q2,qd1,qd2,qdd1,qdd2,tau1,tau2\n");
+        for k in 0..400 {
+            let t = f64::from(k) * 0.01;
+            let x = t + phase;
+            rows.push_str(&format!(
+                "{t},{},{},0,0,0,0,{},0\n",
+                x.sin(),
+                x.cos(),
+                x.sin()
+            ));
+        }
+        rows
+    };
+    (
+        dir.write("d.csv", &rows(0.0)),
+        dir.write("e.csv", &rows(0.5)),
+    )
 }
 
 const STATES: &str = "q1,q2,qd1,qd2,qdd1,qdd2\n0.1,0.2,0.3,0.4,0.5,0.6\n";
@@ -417,7 +425,7 @@ fn endless_lines_gaps_and_devices_are_handled() {
             "--out",
             out.to_str().unwrap(),
         ]),
-        "have the same file name",
+        "give the same output file name",
     );
 }
 

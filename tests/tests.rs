@@ -1,5 +1,6 @@
 //! Integration tests of the product, one binary (see `util` for helpers).
 
+mod bags;
 mod beyond_tau;
 mod cli;
 mod data_effects;
@@ -11,6 +12,7 @@ mod generated_code;
 mod held_joints;
 mod hidden_effects;
 mod hostile;
+mod hostile2;
 mod inertial;
 mod lumping;
 mod pointwise;

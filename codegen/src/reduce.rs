@@ -3,7 +3,7 @@
 //! 2.1-2.9, with the full parallel-axis term), leaving a serial chain of
 //! revolute and prismatic joints.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 
@@ -185,24 +185,44 @@ struct Placement {
     translation: Vector3<f64>,
 }
 
-/// The links and joints of a validated description.
+/// The links and joints of a validated description, with name indexes
+/// (look-ups by scanning made loading quadratic in the chain).
 struct Tree<'a> {
     links: &'a [Link],
     joints: &'a [Joint],
     gravity: [f64; 3],
+    link_index: HashMap<&'a str, usize>,
+    joint_index: HashMap<&'a str, usize>,
 }
 
-impl Tree<'_> {
+impl<'a> Tree<'a> {
+    fn new(links: &'a [Link], joints: &'a [Joint], gravity: [f64; 3]) -> Tree<'a> {
+        let index =
+            |names: Vec<&'a str>| names.into_iter().enumerate().map(|(i, n)| (n, i)).collect();
+        Tree {
+            links,
+            joints,
+            gravity,
+            link_index: index(links.iter().map(|l| l.name.as_str()).collect()),
+            joint_index: index(joints.iter().map(|j| j.name.as_str()).collect()),
+        }
+    }
+
     /// The link no joint has as its child.
     fn root(&self) -> &Link {
+        let children: HashSet<&str> = self.joints.iter().map(|j| j.child.as_str()).collect();
         self.links
             .iter()
-            .find(|l| self.joints.iter().all(|j| j.child != l.name))
+            .find(|l| !children.contains(l.name.as_str()))
             .expect("validated description has a root")
     }
 
     fn link(&self, name: &str) -> Option<&Link> {
-        self.links.iter().find(|l| l.name == name)
+        self.link_index.get(name).map(|&i| &self.links[i])
+    }
+
+    fn joint(&self, name: &str) -> Option<&Joint> {
+        self.joint_index.get(name).map(|&j| &self.joints[j])
     }
 }
 
@@ -213,11 +233,7 @@ pub(crate) fn reduce(
     joints: &[Joint],
     gravity: [f64; 3],
 ) -> Result<Chain, Located> {
-    let description = &Tree {
-        links,
-        joints,
-        gravity,
-    };
+    let description = &Tree::new(links, joints, gravity);
     let mut bodies: Vec<Body> = Vec::new();
     let mut parts: Vec<Vec<Inertial>> = Vec::new();
     let mut parent_body: Vec<Option<usize>> = Vec::new();
@@ -316,7 +332,7 @@ fn held_motion(
 /// found once the chain is ordered).
 fn coupling_of(description: &Tree<'_>, joint: &Joint) -> Option<Coupling> {
     let mimic = joint.mimic.as_ref()?;
-    let master = description.joints.iter().find(|j| j.name == mimic.joint)?;
+    let master = description.joint(&mimic.joint)?;
     master.is_free().then(|| Coupling {
         master: master.name.clone(),
         dof: 0,
@@ -332,9 +348,7 @@ fn held_position(description: &Tree<'_>, joint: &Joint) -> Result<f64, Located> 
         return Ok(joint.locked.unwrap_or(0.0));
     };
     let master = description
-        .joints
-        .iter()
-        .find(|j| j.name == mimic.joint)
+        .joint(&mimic.joint)
         .expect("validated mimic master");
     Ok(mimic.multiplier * master.locked.unwrap_or(0.0) + mimic.offset)
 }
@@ -374,39 +388,21 @@ fn order_tree(
         ));
     }
     let n = bodies.len();
-    let children = |p: Option<usize>| -> Vec<usize> {
-        (0..n).rev().filter(|&b| parent_body[b] == p).collect()
-    };
-    let mut order = Vec::with_capacity(n);
-    let mut stack = children(None);
-    while let Some(b) = stack.pop() {
-        order.push(b);
-        stack.extend(children(Some(b)));
-    }
-    let ancestor = |a: usize, mut b: usize| loop {
-        match parent_body[b] {
-            Some(p) if p == a => return true,
-            Some(p) => b = p,
-            None => return false,
-        }
-    };
-    let free: Vec<usize> = order
-        .iter()
-        .copied()
-        .filter(|&b| bodies[b].coupling.is_none())
-        .collect();
-    for (k, &a) in free.iter().enumerate() {
-        if let Some(&b) = free[k + 1..].iter().find(|&&b| !ancestor(a, b)) {
-            let j = joint_index(description, &bodies[b].joint);
-            return Err(Located::new(
-                KeyPath::root().key("joints").index(j),
-                format!(
-                    "joints `{}` and `{}` both move, on different branches: only serial chains are \
-                     supported (lock or fix one of them)",
-                    bodies[a].joint, bodies[b].joint
-                ),
-            ));
-        }
+    let order = depth_first(&parent_body);
+    if let Some((a, b)) = branching(&order, &bodies, &parent_body) {
+        let j = description
+            .joint_index
+            .get(bodies[b].joint.as_str())
+            .copied()
+            .unwrap_or(0);
+        return Err(Located::new(
+            KeyPath::root().key("joints").index(j),
+            format!(
+                "joints `{}` and `{}` both move, on different branches: only serial chains are \
+                 supported (lock or fix one of them)",
+                bodies[a].joint, bodies[b].joint
+            ),
+        ));
     }
     let mut position = vec![0; n];
     for (k, &b) in order.iter().enumerate() {
@@ -434,10 +430,54 @@ fn order_tree(
     })
 }
 
-fn joint_index(description: &Tree<'_>, name: &str) -> usize {
-    description
-        .joints
+/// The bodies parents first, depth first, siblings in file order.
+fn depth_first(parent_body: &[Option<usize>]) -> Vec<usize> {
+    let n = parent_body.len();
+    let mut roots = Vec::new();
+    let mut children = vec![Vec::new(); n];
+    // Reversed so that the stack pops siblings in file order.
+    for b in (0..n).rev() {
+        match parent_body[b] {
+            Some(p) => children[p].push(b),
+            None => roots.push(b),
+        }
+    }
+    let mut order = Vec::with_capacity(n);
+    let mut stack = roots;
+    while let Some(b) = stack.pop() {
+        order.push(b);
+        stack.extend_from_slice(&children[b]);
+    }
+    order
+}
+
+/// Two bodies that move alone on different branches, if any (the earlier
+/// in `order` first). The free bodies form one chain exactly when each
+/// one's nearest free ancestor is the free body before it in depth-first
+/// order, which is checked in one pass (a check of every pair was cubic).
+fn branching(
+    order: &[usize],
+    bodies: &[Body],
+    parent_body: &[Option<usize>],
+) -> Option<(usize, usize)> {
+    let free = |b: usize| bodies[b].coupling.is_none();
+    // Parents come first in `order`, so each parent's entry is ready.
+    let mut nearest_free: Vec<Option<usize>> = vec![None; bodies.len()];
+    for &b in order {
+        nearest_free[b] =
+            parent_body[b].and_then(|p| if free(p) { Some(p) } else { nearest_free[p] });
+    }
+    let chain: Vec<usize> = order.iter().copied().filter(|&b| free(b)).collect();
+    let k = chain
+        .windows(2)
+        .position(|w| nearest_free[w[1]] != Some(w[0]))?;
+    let b = chain[k + 1];
+    // Name the first chain body that is not an ancestor of `b`.
+    let ancestors =
+        std::iter::successors(parent_body[b], |&p| parent_body[p]).collect::<HashSet<_>>();
+    let a = chain[..=k]
         .iter()
-        .position(|j| j.name == name)
-        .unwrap_or(0)
+        .copied()
+        .find(|a| !ancestors.contains(a))?;
+    Some((a, b))
 }

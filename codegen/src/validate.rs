@@ -9,6 +9,14 @@ use crate::names::check_name;
 use crate::schema::{Inertia, Joint, JointEffects, JointKind, Limits, Link};
 
 pub(crate) fn validate_name(name: &str, at: KeyPath) -> Result<(), Located> {
+    // An empty name cannot be referred to (a joint's parent, --lock, a
+    // report's joint), and blank ones read as missing.
+    if name.trim().is_empty() {
+        return Err(Located::new(
+            at,
+            "the name is empty; give every link and joint a name",
+        ));
+    }
     check_name(name).map_err(|message| Located::new(at, message))
 }
 

@@ -43,7 +43,7 @@ pub struct DiagnoseArgs {
 pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
     let model = find_model(&args.model)?;
     crate::args::check_angle_units(model, args.input.angles.into())?;
-    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
     let pipeline = args.filter.resolve(&recordings)?;
     let report = crate::diagnose::diagnose(
         model,
@@ -57,8 +57,8 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
         },
     )?;
     match args.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&report)?),
-        Format::Text => print!("{}", report.text()),
+        Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&report)?)?,
+        Format::Text => crate::output::print(&report.text())?,
     }
     if let Some(dir) = &args.plots {
         for path in crate::diagnose::plots::write(dir, &report)? {
@@ -79,7 +79,7 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         (None, Some(path)) => path,
         (None, None) => PathBuf::from(format!("models/{}.toml", model.name())),
     };
-    let on_disk = std::fs::read_to_string(&toml)
+    let on_disk = crate::bounded::read_description(&toml)
         .with_context(|| format!("{}: cannot read", toml.display()))?;
     if let Err(e) = codegen::Description::parse(&on_disk, model.name(), &toml) {
         bail!(

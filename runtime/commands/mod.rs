@@ -68,6 +68,28 @@ pub struct SimulateArgs {
 /// CSV at 1 kHz for 3 joints): beyond it, run it several times.
 const MOST_SIMULATED_SECONDS: f64 = 36_000.0;
 
+/// Joints up to which a run may simulate [`MOST_SIMULATED_SECONDS`] (a
+/// Panda); beyond, the seconds shrink with the cube of the joint count,
+/// as the cost of a step does (the forward dynamics' mass matrix: a
+/// 1,000-joint model took 4.8 s per 1 ms step).
+const FULL_BUDGET_JOINTS: usize = 7;
+
+/// Refuses `seconds` of simulation of a `dof`-joint plant beyond the
+/// budget; `what` says which options made them.
+fn check_simulated_seconds(what: &str, seconds: f64, dof: usize) -> Result<()> {
+    let scale = (dof.max(FULL_BUDGET_JOINTS) as f64 / FULL_BUDGET_JOINTS as f64).powi(3);
+    let most = MOST_SIMULATED_SECONDS / scale;
+    if seconds > most {
+        bail!(
+            "{what} is {seconds} s of simulation of a {dof}-joint plant, more than one run \
+             simulates ({most:.3e} s: {MOST_SIMULATED_SECONDS} s up to {FULL_BUDGET_JOINTS} \
+             joints, shrinking with the cube of the joint count, as the cost of a step grows): \
+             simulate fewer or shorter trajectories"
+        );
+    }
+    Ok(())
+}
+
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let total = args.count as f64 * args.duration;
     if total > MOST_SIMULATED_SECONDS {
@@ -80,8 +102,11 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         );
     }
     let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    let what = format!("--count {} x --duration {}", args.count, args.duration);
+    check_simulated_seconds(&what, total, plant.dof())?;
     crate::output::create_folder(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    refuse_stale_recordings(&args.out, args.count)?;
     let config = StudyConfig {
         duration: args.duration,
         ..StudyConfig::default()
@@ -102,12 +127,42 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    println!(
+    crate::output::print_line(&format!(
         "{} trajectories written to {}",
         args.count,
         args.out.display()
-    );
+    ))?;
     Ok(())
+}
+
+/// Refuses a folder holding recordings `trajectory_NN.csv` numbered
+/// beyond `count` (an earlier, larger run's): this run would leave them
+/// beside its own, and a later `train DIR/*.csv` would take them too.
+fn refuse_stale_recordings(dir: &Path, count: usize) -> Result<()> {
+    let entries = std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
+    let mut stale: Vec<String> = entries
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|name| {
+            let number = name
+                .strip_prefix("trajectory_")
+                .and_then(|n| n.strip_suffix(".csv"))
+                .and_then(|n| n.parse::<usize>().ok());
+            number.is_some_and(|n| n > count)
+        })
+        .collect();
+    if stale.is_empty() {
+        return Ok(());
+    }
+    stale.sort();
+    let shown = stale.len().min(5);
+    bail!(
+        "{} holds {} recording(s) of an earlier run beyond --count {count} ({}{}): this run would \
+         leave them beside its own; remove them or choose another --out",
+        dir.display(),
+        stale.len(),
+        stale[..shown].join(", "),
+        if stale.len() > shown { ", ..." } else { "" }
+    )
 }
 
 #[derive(Debug, Args)]
@@ -115,7 +170,7 @@ pub struct PreprocessArgs {
     /// Measured CSV files.
     #[arg(required = true)]
     pub data: Vec<PathBuf>,
-    /// Output folder (same file names).
+    /// Output folder (same file names; a bag's `.mcap` becomes `.csv`).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -130,7 +185,7 @@ pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
     for_each_file(&args.data, |path| {
         let (processed, pipeline) = load_one(path, None, &args.input, &args.filter)?;
         eprintln!("{}: {}", path.display(), pipeline.summary());
-        write_csv(args.out.join(file_name(path)?), &processed)?;
+        write_csv(args.out.join(output_name(path)?), &processed)?;
         Ok(())
     })
 }
@@ -161,12 +216,12 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
         let traj = if args.preprocessed {
-            load_preprocessed(path, Some(model.dof()), &args.input)?
+            load_preprocessed(path, Some(model.joint_names()), &args.input)?
         } else {
-            load_one(path, Some(model.dof()), &args.input, &args.filter)?.0
+            load_one(path, Some(model.joint_names()), &args.input, &args.filter)?.0
         };
         let analytical = traj.with_tau(model_torques(model, &traj)?)?;
-        write_csv(args.out.join(file_name(path)?), &analytical)?;
+        write_csv(args.out.join(output_name(path)?), &analytical)?;
         Ok(())
     })
 }
@@ -204,7 +259,8 @@ pub fn train(args: &TrainArgs) -> Result<()> {
         args.data
             .iter()
             .map(|path| load_preprocessed(path, None, &args.input))
-            .collect::<Result<Vec<_>>>()?
+            .collect::<Result<Vec<_>>>()
+            .and_then(|all| crate::inputs::reject_repeated(&args.data, &all).map(|()| all))?
     } else {
         let (trajectories, pipeline) = load(&args.data, None, &args.input, &args.filter)?;
         eprintln!("{}", pipeline.summary());
@@ -257,7 +313,7 @@ pub fn train(args: &TrainArgs) -> Result<()> {
     if crate::output::is_stdout(&args.out) {
         eprintln!("{text}");
     } else {
-        println!("{text}");
+        crate::output::print_line(&text)?;
     }
     Ok(())
 }
@@ -298,7 +354,7 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
             );
         }
     }
-    let recordings = args.input.read_all(&args.data, Some(model.dof()))?;
+    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
     let pipeline = args.filter.resolve(&recordings)?;
     let mut compared = Vec::new();
     for (raw, path) in recordings.iter().zip(&args.data) {
@@ -333,23 +389,25 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
         .as_ref()
         .map_or(model.name().to_string(), |p| p.display().to_string());
     match args.format {
-        Format::Json => println!(
-            "{}",
-            serde_json::json!({
+        Format::Json => crate::output::print_line(
+            &serde_json::json!({
                 "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
                 "mse_torque_as_logged": mse_as_logged, "preprocessing": pipeline,
             })
-        ),
+            .to_string(),
+        )?,
         Format::Text => {
-            println!("model {name}: {} samples", m.nrows());
-            println!("{}", pipeline.summary());
+            use std::fmt::Write as _;
+            let mut text = format!("model {name}: {} samples\n", m.nrows());
+            let _ = writeln!(text, "{}", pipeline.summary());
             let levers = crate::dynamics::joint_levers(model);
             let unit = |j: usize| match levers.get(j) {
                 Some(&l) if l != 1.0 => "N^2",
                 _ => "N m^2",
             };
             for (j, v) in mse.iter().enumerate() {
-                println!(
+                let _ = writeln!(
+                    text,
                     "  joint {}: MSE {v:.6} {} (against the torque as logged: {:.6})",
                     j + 1,
                     unit(j),
@@ -362,7 +420,8 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
             } else {
                 unit(0)
             };
-            println!("  mean:    MSE {mean:.6} {mean_unit}");
+            let _ = writeln!(text, "  mean:    MSE {mean:.6} {mean_unit}");
+            crate::output::print(&text)?;
         }
     }
     Ok(())
@@ -415,22 +474,44 @@ pub fn predict(args: &PredictArgs) -> Result<()> {
     Ok(())
 }
 
-fn file_name(path: &Path) -> Result<&std::ffi::OsStr> {
-    path.file_name()
-        .with_context(|| format!("{}: not a file name", path.display()))
+/// The output's file name for input `path` in an output folder: the
+/// input's name, a bag's (`.mcap`) with `.csv` since the output is CSV.
+fn output_name(path: &Path) -> Result<std::ffi::OsString> {
+    if path == Path::new("-") {
+        bail!(
+            "`-` (standard input) has no file name to give its output in the output folder: \
+             save it to a file first"
+        );
+    }
+    let name = Path::new(
+        path.file_name()
+            .with_context(|| format!("{}: not a file name", path.display()))?,
+    );
+    let bag = name
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    Ok(if bag {
+        name.with_extension("csv").into_os_string()
+    } else {
+        name.as_os_str().to_os_string()
+    })
 }
 
-/// Runs `f` on every file, whose output is the file's name in the output
+/// Runs `f` on every file, whose output is [`output_name`] in the output
 /// folder; a bad file is reported and the rest still run.
 fn for_each_file(files: &[PathBuf], f: impl Fn(&Path) -> Result<()>) -> Result<()> {
-    for (k, path) in files.iter().enumerate() {
-        let name = file_name(path)?;
-        if let Some(other) = files[..k].iter().find(|p| p.file_name() == Some(name)) {
+    let names = files
+        .iter()
+        .map(|p| output_name(p))
+        .collect::<Result<Vec<_>>>()?;
+    for (k, (path, name)) in files.iter().zip(&names).enumerate() {
+        if let Some(other) = names[..k].iter().position(|n| n == name) {
             bail!(
-                "{} and {} have the same file name: their outputs would overwrite each other in \
-                 the output folder (rename one, or run them separately)",
-                other.display(),
-                path.display()
+                "{} and {} give the same output file name ({}): their outputs would overwrite \
+                 each other in the output folder (rename one, or run them separately)",
+                files[other].display(),
+                path.display(),
+                name.to_string_lossy()
             );
         }
     }

@@ -97,10 +97,7 @@ fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
         find_model(THESIS_CONTROLLER)?,
         find_model(DEFAULT_NOMINAL)?,
     );
-    let config = study::map::MapConfig {
-        seed: args.run.seed,
-        ..study::map::MapConfig::default()
-    };
+    let config = map_config(args)?;
     let out = &args.run.out;
     crate::output::create_folder(out).with_context(|| format!("creating {}", out.display()))?;
     let bar = progress_bar();
@@ -113,13 +110,64 @@ fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
     bar.finish_and_clear();
     let markdown = crate::study::report::write_map(&cells, &config, out)?;
     match args.run.format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&cells)?),
+        Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&cells)?)?,
         Format::Text => {
-            println!("{markdown}");
-            println!("Map written to {}", out.display());
+            crate::output::print(&format!("{markdown}\nMap written to {}\n", out.display()))?;
         }
     }
     Ok(())
+}
+
+/// The map's settings: its own defaults (10 s trajectories, 15 epochs, 3
+/// splits), with `--seed`, `--seeds`, `--epochs`, `--hidden`,
+/// `--duration` and `--splits` when they differ from `reproduce`'s
+/// defaults. Options the map's grid or plant fixes are refused by name
+/// (they were ignored without a word).
+fn map_config(args: &ReproduceArgs) -> Result<study::map::MapConfig> {
+    let study = StudyConfig::default();
+    let fixed = [
+        ("--trajectories", args.trajectories != 14),
+        ("--train", args.train != 10),
+        ("--situation", args.situation != Situation::Virtual),
+        ("--plant", args.plant.is_some()),
+        ("--nominal", args.nominal.is_some()),
+        ("--noise-scale", args.noise_scale != 1.0),
+        ("--patience", args.run.patience != study.patience),
+        (
+            "--learning-rate",
+            args.run.learning_rate != study.learning_rate,
+        ),
+    ];
+    if let Some((flag, _)) = fixed.iter().find(|(_, set)| *set) {
+        bail!(
+            "{flag} does not apply to --map: its grid sets the training trajectories and the \
+             noise, on the thesis situation's plant, with its own network schedule (it takes \
+             --seed, --seeds, --epochs, --hidden, --duration and --splits)"
+        );
+    }
+    ranges::check_layers(&args.run.hidden).map_err(anyhow::Error::msg)?;
+    let map = study::map::MapConfig::default();
+    if args.duration != 20.0 && args.duration < MIN_STUDY_SECONDS {
+        bail!(
+            "--duration {} s: the map's trajectories need at least {MIN_STUDY_SECONDS} s",
+            args.duration
+        );
+    }
+    let or_default =
+        |given: f64, default: f64, map: f64| if given != default { given } else { map };
+    Ok(study::map::MapConfig {
+        seed: args.run.seed,
+        seeds: args.run.seeds,
+        max_epochs: or_default(
+            args.run.epochs as f64,
+            study.max_epochs as f64,
+            map.max_epochs as f64,
+        ) as usize,
+        hidden: args.run.hidden.clone(),
+        duration: or_default(args.duration, 20.0, map.duration),
+        splits: args.splits.unwrap_or(map.splits),
+        ..map
+    })
 }
 
 /// The study's situation (see `ReproduceArgs::situation`).
@@ -170,6 +218,11 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
             (plant, plant)
         }
     };
+    let what = format!(
+        "--trajectories {} x --duration {}",
+        args.trajectories, args.duration
+    );
+    check_simulated_seconds(&what, recorded, plant.dof())?;
     let config = StudyConfig {
         trajectories: args.trajectories,
         train: args.train,
@@ -207,10 +260,13 @@ fn run_study(
     let result = study(&report)?;
     bar.finish_and_clear();
     match format {
-        Format::Json => println!("{}", serde_json::to_string_pretty(&result)?),
+        Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&result)?)?,
         Format::Text => {
-            println!("{}", crate::study::report::markdown(&result));
-            println!("Results written to {}", out.display());
+            crate::output::print(&format!(
+                "{}\nResults written to {}\n",
+                crate::study::report::markdown(&result),
+                out.display()
+            ))?;
         }
     }
     Ok(())
@@ -242,7 +298,9 @@ pub struct StudyArgs {
 pub fn study_command(args: &StudyArgs) -> Result<()> {
     let nominal = find_model(&args.model)?;
     crate::args::check_angle_units(nominal, args.input.angles.into())?;
-    let recordings = args.input.read_all(&args.data, Some(nominal.dof()))?;
+    let recordings = args
+        .input
+        .read_all(&args.data, Some(nominal.joint_names()))?;
     let config = StudyConfig {
         preprocess: args.filter.resolve(&recordings)?.settings,
         trajectories: recordings.len() * (args.train_pieces + 1),

@@ -248,6 +248,16 @@ pub(super) fn attach_payloads(
                 format!("link '{}' is not in the imported chain", a.link),
             ));
         }
+        if !moves(&a.link, joints) {
+            return Err(option_error(
+                "--attach",
+                format!(
+                    "link '{}' does not move (the base, or fixed or locked to it): a payload \
+                     there changes no joint torque; attach it to a link the joints carry",
+                    a.link
+                ),
+            ));
+        }
         let body = payload_body(a)?;
         let name = unique_name(&format!("{}_payload", a.link), taken);
         let joint = unique_name(&format!("{name}_joint"), taken);
@@ -279,6 +289,20 @@ pub(super) fn attach_payloads(
         });
     }
     Ok(())
+}
+
+/// Whether a joint that moves lies between `link` and the base.
+fn moves(link: &str, joints: &[JointOut]) -> bool {
+    let mut current = link;
+    // Each step goes one joint up; more steps than joints is a cycle.
+    for _ in 0..=joints.len() {
+        match joints.iter().find(|j| j.child == current) {
+            Some(j) if j.kind != KindOut::Fixed && j.locked.is_none() => return true,
+            Some(j) => current = &j.parent,
+            None => return false,
+        }
+    }
+    false
 }
 
 fn payload_body(a: &Attachment) -> Result<Body, ImportError> {

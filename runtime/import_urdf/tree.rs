@@ -20,6 +20,17 @@ fn structure(message: String) -> ImportError {
     ImportError::Structure(message)
 }
 
+/// At most ten names, then how many more: an error about 10,000 links
+/// stays one readable line (100,000 names made a 789 KB message).
+fn some_names(names: &[&str]) -> String {
+    const SHOWN: usize = 10;
+    let mut text = names[..names.len().min(SHOWN)].join(", ");
+    if names.len() > SHOWN {
+        text.push_str(&format!(" and {} more", names.len() - SHOWN));
+    }
+    text
+}
+
 impl<'a> Tree<'a> {
     pub fn new(urdf: &'a Urdf) -> Result<Tree<'a>, ImportError> {
         let mut link_index = HashMap::new();
@@ -83,7 +94,7 @@ impl<'a> Tree<'a> {
         } else {
             Err(structure(format!(
                 "the joints form a cycle through links {}",
-                lost.join(", ")
+                some_names(&lost)
             )))
         }
     }
@@ -208,7 +219,7 @@ fn single_root(urdf: &Urdf, parent_joint: &[Option<usize>]) -> Result<usize, Imp
             Err(structure(format!(
                 "{} links have no parent ({}): a URDF must be one tree",
                 many.len(),
-                names.join(", ")
+                some_names(&names)
             )))
         }
     }

@@ -339,7 +339,7 @@ impl Mlp {
     pub fn load(path: impl AsRef<Path>) -> Result<Self, TrainError> {
         let path = path.as_ref();
         crate::output::note_input(path);
-        let text = std::fs::read_to_string(path).map_err(|source| TrainError::Io {
+        let text = crate::bounded::read_to_string(path).map_err(|source| TrainError::Io {
             path: path.to_owned(),
             source,
         })?;

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 pub use cdr::CdrError;
+use cdr::JointStateMsg;
 
 /// Schema name rosbag2 records for joint states.
 pub const JOINT_STATE_SCHEMA: &str = "sensor_msgs/msg/JointState";
@@ -34,6 +35,22 @@ pub struct JointStates {
     pub position: Vec<Vec<f64>>,
     pub velocity: Vec<Vec<f64>>,
     pub effort: Vec<Vec<f64>>,
+    /// How the joints were chosen.
+    pub order: JointOrder,
+    /// Messages skipped because they name none of the chosen joints
+    /// (another publisher's on the same topic, a gripper's).
+    pub ignored_messages: usize,
+}
+
+/// How the joints of a [`JointStates`] were chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointOrder {
+    /// By `--joints`, in its order.
+    Requested,
+    /// By the model's joint names, in the model's order.
+    ModelNames,
+    /// The first message's joints in its order (no names to match).
+    FirstMessage,
 }
 
 /// Which topic and joints to read; `None` picks automatically.
@@ -41,8 +58,12 @@ pub struct JointStates {
 pub struct BagOptions {
     /// Needed only when the bag has several `JointState` topics.
     pub topic: Option<String>,
-    /// Selection and order by name; `None` keeps the first message's names and order.
+    /// Selection and order by name (`--joints`); wins over `model`.
     pub joints: Option<Vec<String>>,
+    /// The model's joint names, base first: the bag is read by these names
+    /// when it carries them all; without either list, the first message's
+    /// joints are read in its order.
+    pub model: Option<Vec<String>>,
 }
 
 /// Where in a bag a message-level problem is.
@@ -111,11 +132,31 @@ pub enum BagError {
     },
     #[error("{}: joint '{joint}' is requested twice", .path.display())]
     RequestedTwice { path: PathBuf, joint: String },
-    #[error("{}: joint '{joint}' is not in the bag; the first message on '{topic}' names {present}", .path.display())]
+    #[error("{}: joint '{joint}' is not in the bag; the messages on '{topic}' name {present}", .path.display())]
     UnknownJoint {
         path: PathBuf,
         topic: String,
         joint: String,
+        present: String,
+    },
+    #[error(
+        "{}: the model's joint '{joint}' is not on topic '{topic}', which names {present}; pass --joints \
+         with the bag's names in the model's order",
+        .path.display()
+    )]
+    ModelJointMissing {
+        path: PathBuf,
+        topic: String,
+        joint: String,
+        present: String,
+    },
+    #[error(
+        "{at}: names {present}, none of the first message's joints ({first}): the topic carries \
+         several publishers' joints; pass --joints with the arm's joints in the model's order"
+    )]
+    SeveralJointSets {
+        at: MessageAt,
+        first: String,
         present: String,
     },
     #[error("{at}: malformed JointState")]
@@ -167,135 +208,225 @@ type Raw = Vec<(u64, Vec<u8>)>;
 /// Reads the joint states of one topic; see the module docs for the error conventions.
 pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointStates, BagError> {
     crate::output::note_input(path);
-    let bytes = std::fs::read(path).map_err(|source| BagError::Io {
+    let bytes = crate::bounded::read(path).map_err(|source| BagError::Io {
         path: path.into(),
         source,
     })?;
     let (topic, raw) = collect_topic(path, &bytes, options.topic.as_deref())?;
     drop(bytes);
-    if raw.len() < 2 {
-        return Err(BagError::TooFewMessages {
-            path: path.into(),
-            topic,
-            count: raw.len(),
-        });
-    }
-    let at = |index: usize| MessageAt {
+    let at = |index: usize, log_time: u64| MessageAt {
         path: path.into(),
         topic: topic.clone(),
         index,
-        log_time: raw[index].0,
+        log_time,
     };
-    let decode = |index: usize, data: &[u8]| {
-        cdr::decode_joint_state(data).map_err(|source| BagError::Decode {
-            at: at(index),
-            source,
-        })
-    };
-
-    // The first message is decoded again in the loop; selection needs it first.
-    let first = decode(0, &raw[0].1)?;
-    if let Some(joint) = first_duplicate(&first.name) {
-        return Err(BagError::DuplicateJoint { at: at(0), joint });
+    let messages = decode_all(raw, &at)?;
+    if messages.len() < 2 {
+        return Err(BagError::TooFewMessages {
+            path: path.into(),
+            topic,
+            count: messages.len(),
+        });
     }
-    let joints = match &options.joints {
-        None => first.name.clone(),
-        Some(list) => {
-            if let Some(joint) = first_duplicate(list) {
-                return Err(BagError::RequestedTwice {
-                    path: path.into(),
-                    joint,
-                });
-            }
-            if let Some(joint) = list.iter().find(|j| !first.name.contains(j)) {
-                return Err(BagError::UnknownJoint {
-                    path: path.into(),
-                    topic: topic.clone(),
-                    joint: joint.clone(),
-                    present: quoted(&first.name),
-                });
-            }
-            list.clone()
-        }
-    };
-    if joints.is_empty() {
-        return Err(BagError::NoJoints { at: at(0) });
+    let (joints, order) = select(path, &topic, &messages, options)?;
+    let kept = keep(&messages, &joints, order, &at)?;
+    if kept.len() < 2 {
+        return Err(BagError::TooFewMessages {
+            path: path.into(),
+            topic,
+            count: kept.len(),
+        });
     }
-    let column = |names: &[String], joint: &String| names.iter().position(|n| n == joint);
-    let first_columns: Vec<usize> = joints
-        .iter()
-        .filter_map(|j| column(&first.name, j))
-        .collect();
-
-    let n = raw.len();
     let mut out = JointStates {
+        t: Vec::with_capacity(kept.len()),
+        position: Vec::with_capacity(kept.len()),
+        velocity: Vec::with_capacity(kept.len()),
+        effort: Vec::with_capacity(kept.len()),
+        ignored_messages: messages.len() - kept.len(),
+        order,
         joints,
-        t: Vec::with_capacity(n),
-        position: Vec::with_capacity(n),
-        velocity: Vec::with_capacity(n),
-        effort: Vec::with_capacity(n),
     };
-    // One clock for the whole bag: the header stamps when any is set (a
-    // simulation clock may start at exactly zero), else the log times.
-    let stamped = raw
-        .iter()
-        .enumerate()
-        .any(|(index, (_, data))| decode(index, data).is_ok_and(|m| m.sec != 0 || m.nanosec != 0));
-    let mut t0 = None;
-    let mut previous: Option<i128> = None;
-    for (index, (log_time, data)) in raw.iter().enumerate() {
-        let msg = decode(index, data)?;
-        let fields = [
-            ("position", &msg.position),
-            ("velocity", &msg.velocity),
-            ("effort", &msg.effort),
-        ];
-        for (field, values) in fields {
-            if values.is_empty() {
-                return Err(BagError::EmptyField {
-                    at: at(index),
-                    field,
+    fill_values(&mut out, &messages, &kept, &at)?;
+    fill_times(&mut out, &messages, &kept, &at)?;
+    Ok(out)
+}
+
+/// Every message decoded, with its log time, its names checked (the
+/// values are checked where they are read: another publisher's messages
+/// may lack effort).
+fn decode_all(
+    raw: Raw,
+    at: &impl Fn(usize, u64) -> MessageAt,
+) -> Result<Vec<(u64, JointStateMsg)>, BagError> {
+    let mut messages = Vec::with_capacity(raw.len());
+    for (index, (log_time, data)) in raw.into_iter().enumerate() {
+        let at = || at(index, log_time);
+        let msg = cdr::decode_joint_state(&data)
+            .map_err(|source| BagError::Decode { at: at(), source })?;
+        if msg.name.is_empty() {
+            return Err(BagError::NoJoints { at: at() });
+        }
+        if let Some(joint) = first_duplicate(&msg.name) {
+            return Err(BagError::DuplicateJoint { at: at(), joint });
+        }
+        messages.push((log_time, msg));
+    }
+    Ok(messages)
+}
+
+fn fields(msg: &JointStateMsg) -> [(&'static str, &Vec<f64>); 3] {
+    [
+        ("position", &msg.position),
+        ("velocity", &msg.velocity),
+        ("effort", &msg.effort),
+    ]
+}
+
+/// The joints to read and why: `--joints` as given; else the model's
+/// joints when the topic names them all (in any order, among others);
+/// else the first message's joints in its order.
+fn select(
+    path: &Path,
+    topic: &str,
+    messages: &[(u64, JointStateMsg)],
+    options: &BagOptions,
+) -> Result<(Vec<String>, JointOrder), BagError> {
+    let present = names_on_topic(messages);
+    let absent = |list: &[String]| list.iter().find(|j| !present.contains(j)).cloned();
+    if let Some(list) = &options.joints {
+        if let Some(joint) = first_duplicate(list) {
+            return Err(BagError::RequestedTwice {
+                path: path.into(),
+                joint,
+            });
+        }
+        if let Some(joint) = absent(list) {
+            return Err(BagError::UnknownJoint {
+                path: path.into(),
+                topic: topic.into(),
+                joint,
+                present: quoted(&present),
+            });
+        }
+        return Ok((list.clone(), JointOrder::Requested));
+    }
+    if let Some(model) = &options.model {
+        match absent(model) {
+            None => return Ok((model.clone(), JointOrder::ModelNames)),
+            // Some of the model's names but not all: reading in message
+            // order would pair joints by position with names that disagree.
+            Some(joint) if model.iter().any(|j| present.contains(j)) => {
+                return Err(BagError::ModelJointMissing {
+                    path: path.into(),
+                    topic: topic.into(),
+                    joint,
+                    present: quoted(&present),
                 });
+            }
+            Some(_) => {}
+        }
+    }
+    Ok((messages[0].1.name.clone(), JointOrder::FirstMessage))
+}
+
+/// Every joint name on the topic, in order of first appearance.
+fn names_on_topic(messages: &[(u64, JointStateMsg)]) -> Vec<String> {
+    let mut seen = std::collections::HashSet::new();
+    let mut present = Vec::new();
+    let mut last: Option<&Vec<String>> = None;
+    for (_, msg) in messages {
+        // Publishers repeat one name list: skip the set work when it does.
+        if last == Some(&msg.name) {
+            continue;
+        }
+        last = Some(&msg.name);
+        for name in &msg.name {
+            if seen.insert(name.as_str()) {
+                present.push(name.clone());
+            }
+        }
+    }
+    present
+}
+
+/// The messages to read, each with the column of every selected joint.
+/// A message naming none of the selected joints is another publisher's (a
+/// gripper's) and is skipped when the selection was explicit; one naming
+/// some but not all is an error.
+fn keep(
+    messages: &[(u64, JointStateMsg)],
+    joints: &[String],
+    order: JointOrder,
+    at: &impl Fn(usize, u64) -> MessageAt,
+) -> Result<Vec<(usize, Vec<usize>)>, BagError> {
+    let mut kept = Vec::with_capacity(messages.len());
+    let mut last: Option<(&Vec<String>, Option<Vec<usize>>)> = None;
+    for (index, (log_time, msg)) in messages.iter().enumerate() {
+        let columns = match &last {
+            Some((names, columns)) if *names == &msg.name => columns.clone(),
+            _ => {
+                let found: Vec<Option<usize>> = joints
+                    .iter()
+                    .map(|j| msg.name.iter().position(|n| n == j))
+                    .collect();
+                let columns = if found.iter().all(Option::is_none) {
+                    if order == JointOrder::FirstMessage {
+                        return Err(BagError::SeveralJointSets {
+                            at: at(index, *log_time),
+                            first: quoted(joints),
+                            present: quoted(&msg.name),
+                        });
+                    }
+                    None
+                } else if let Some(missing) = found.iter().position(Option::is_none) {
+                    return Err(BagError::MissingJoint {
+                        at: at(index, *log_time),
+                        joint: joints[missing].clone(),
+                        present: quoted(&msg.name),
+                    });
+                } else {
+                    Some(found.into_iter().flatten().collect())
+                };
+                last = Some((&msg.name, columns.clone()));
+                columns
+            }
+        };
+        if let Some(columns) = columns {
+            kept.push((index, columns));
+        }
+    }
+    Ok(kept)
+}
+
+/// Positions, velocities and efforts of the kept messages, checked finite.
+fn fill_values(
+    out: &mut JointStates,
+    messages: &[(u64, JointStateMsg)],
+    kept: &[(usize, Vec<usize>)],
+    at: &impl Fn(usize, u64) -> MessageAt,
+) -> Result<(), BagError> {
+    for (index, columns) in kept {
+        let (log_time, msg) = &messages[*index];
+        let at = || at(*index, *log_time);
+        let sinks = [&mut out.position, &mut out.velocity, &mut out.effort];
+        for ((field, values), sink) in fields(msg).into_iter().zip(sinks) {
+            if values.is_empty() {
+                return Err(BagError::EmptyField { at: at(), field });
             }
             if values.len() != msg.name.len() {
                 return Err(BagError::LengthMismatch {
-                    at: at(index),
+                    at: at(),
                     field,
                     found: values.len(),
                     names: msg.name.len(),
                 });
             }
-        }
-        // Another publisher may send a subset or another order: match by name.
-        let columns = if msg.name == first.name {
-            first_columns.clone()
-        } else {
-            if let Some(joint) = first_duplicate(&msg.name) {
-                return Err(BagError::DuplicateJoint {
-                    at: at(index),
-                    joint,
-                });
-            }
-            let mut columns = Vec::with_capacity(out.joints.len());
-            for joint in &out.joints {
-                columns.push(
-                    column(&msg.name, joint).ok_or_else(|| BagError::MissingJoint {
-                        at: at(index),
-                        joint: joint.clone(),
-                        present: quoted(&msg.name),
-                    })?,
-                );
-            }
-            columns
-        };
-        let sinks = [&mut out.position, &mut out.velocity, &mut out.effort];
-        for ((field, values), sink) in fields.into_iter().zip(sinks) {
             let mut row = Vec::with_capacity(columns.len());
             for (&c, joint) in columns.iter().zip(&out.joints) {
                 let value = values[c];
                 if !value.is_finite() {
                     return Err(BagError::NonFinite {
-                        at: at(index),
+                        at: at(),
                         field,
                         joint: joint.clone(),
                         value,
@@ -305,7 +436,27 @@ pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointState
             }
             sink.push(row);
         }
+    }
+    Ok(())
+}
 
+/// Seconds from the first kept message, on one clock for the whole
+/// series: the header stamps when any kept message has one set (a
+/// simulation clock may start at exactly zero), else the log times.
+fn fill_times(
+    out: &mut JointStates,
+    messages: &[(u64, JointStateMsg)],
+    kept: &[(usize, Vec<usize>)],
+    at: &impl Fn(usize, u64) -> MessageAt,
+) -> Result<(), BagError> {
+    let stamped = kept.iter().any(|(index, _)| {
+        let msg = &messages[*index].1;
+        msg.sec != 0 || msg.nanosec != 0
+    });
+    let mut t0 = None;
+    let mut previous: Option<i128> = None;
+    for (index, _) in kept {
+        let (log_time, msg) = &messages[*index];
         // Integer nanoseconds so that the ordering check is exact.
         let ns = if stamped {
             i128::from(msg.sec) * 1_000_000_000 + i128::from(msg.nanosec)
@@ -318,7 +469,7 @@ pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointState
             && ns <= prev
         {
             return Err(BagError::NotIncreasing {
-                at: at(index),
+                at: at(*index, *log_time),
                 previous: seconds(prev),
                 current: seconds(ns),
             });
@@ -326,7 +477,7 @@ pub fn read_joint_states(path: &Path, options: &BagOptions) -> Result<JointState
         previous = Some(ns);
         out.t.push(seconds(ns));
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Largest record or chunk (compressed or decompressed) of a bag, bytes.

@@ -165,6 +165,7 @@ fn read(
     let options = BagOptions {
         topic: topic.map(str::to_string),
         joints: joints.map(names),
+        model: None,
     };
     read_joint_states(path, &options)
 }
@@ -547,83 +548,4 @@ proptest! {
     }
 }
 
-/// A virtual-robot recording written as a bag (joints in another order,
-/// with a gripper joint the model lacks), read through the command line's
-/// reader with `--joints` in the model's order, diagnosed at the defaults:
-/// the plant's Coulomb friction is named on every joint.
-#[test]
-fn a_bag_is_diagnosed_like_a_csv() {
-    use crate::sim::reference::WaypointConfig;
-    use crate::study::{self, StudyConfig};
-    let plant = crate::model("kinova_gen3_lite_3dof_plant").unwrap();
-    let nominal = crate::model("kinova_gen3_lite_3dof").unwrap();
-    let waypoints = WaypointConfig {
-        limits: study::limits(nominal, &StudyConfig::default()).unwrap(),
-        ..WaypointConfig::default()
-    };
-    let recording = study::record_trajectory(plant, nominal, &waypoints, 3)
-        .unwrap()
-        .measured;
-    let order = ["gripper", "joint3", "joint1", "joint2"];
-    let messages: Vec<Vec<u8>> = (0..recording.len())
-        .map(|s| {
-            let pick = |m: &nalgebra::DMatrix<f64>| -> Vec<f64> {
-                [0.0, m[(s, 2)], m[(s, 0)], m[(s, 1)]].to_vec()
-            };
-            let t = recording.t()[s];
-            let message = JointStateMsg {
-                sec: 1_700_000_000 + t.floor() as i32,
-                nanosec: (t.fract() * 1e9).round() as u32,
-                frame_id: String::new(),
-                name: names(&order),
-                position: pick(recording.q()),
-                velocity: pick(recording.qd()),
-                effort: pick(recording.tau()),
-            };
-            encode(&message, true)
-        })
-        .collect();
-    let dir = tempfile::tempdir().unwrap();
-    let path = write_bag(
-        dir.path(),
-        Some(Compression::Zstd),
-        &[js_topic("/joint_states", messages)],
-    );
-    let input = crate::inputs::InputArgs {
-        angles: Default::default(),
-        resample: Some(1000.0),
-        columns: vec![],
-        ignored: vec![],
-        topic: None,
-        joints: Some(names(&["joint1", "joint2", "joint3"])),
-        torque_scales: vec![],
-        torque_delay: None,
-    };
-    let traj = input.read(&path, Some(3)).unwrap();
-    assert!((traj.q()[(100, 1)] - recording.q()[(100, 1)]).abs() < 1e-9);
-    let recordings = [traj];
-    let pipeline = crate::preprocess::Pipeline::auto(&recordings, None, None).unwrap();
-    let d = crate::diagnose::diagnose(
-        nominal,
-        &recordings,
-        &pipeline,
-        crate::diagnose::Settings::default(),
-    )
-    .unwrap();
-    for j in 1..=3 {
-        assert!(
-            d.effects
-                .iter()
-                .any(|e| e.kind == crate::diagnose::Kind::CoulombFriction && e.joint == Some(j)),
-            "{}",
-            d.text()
-        );
-    }
-    // Without --joints the bag's four joints do not fit the model.
-    let all = crate::inputs::InputArgs {
-        joints: None,
-        ..input
-    };
-    let error = all.read(&path, Some(3)).unwrap_err().to_string();
-    assert!(error.contains("--joints"), "{error}");
-}
+mod names;

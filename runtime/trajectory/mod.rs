@@ -26,7 +26,7 @@ pub use read::{
     read_torques_csv,
 };
 use sampling::*;
-pub use sampling::{resample, uniform};
+pub use sampling::{MIN_STEP, resample, uniform};
 
 /// Relative deviation of a time step from the median step above which the
 /// sampling is treated as non-uniform.

@@ -27,7 +27,7 @@ pub fn uniform(
 }
 
 /// Shortest time step accepted: a 1 MHz log.
-pub(super) const MIN_STEP: f64 = 1e-6;
+pub const MIN_STEP: f64 = 1e-6;
 
 pub(super) fn check_time(path: &Path, t: &[f64], lines: &[u64]) -> Result<(), TrajectoryError> {
     for (i, w) in t.windows(2).enumerate() {

@@ -252,15 +252,23 @@ fn add_joint_effect(doc: &mut DocumentMut, joint: &str, key: &str, delta: f64) -
     let current = effects.get(key).and_then(number).unwrap_or(0.0);
     let updated = current + delta;
     match effects {
-        Item::Value(Value::InlineTable(t)) => {
-            t.insert(key, updated.into());
-        }
-        Item::Table(t) => {
-            t.insert(key, toml_edit::value(updated));
-        }
+        Item::Value(Value::InlineTable(t)) => match t.get_mut(key) {
+            Some(old) => keep_decor(old, updated.into()),
+            None => {
+                t.insert(key, updated.into());
+            }
+        },
+        Item::Table(t) => set_keeping_decor(t, key, updated.into()),
         _ => bail!("`effects` of joint `{joint}` is not a table"),
     }
     Ok(())
+}
+
+/// Replaces `old` by `value` with `old`'s spaces and comments (a trailing
+/// `# measured on the bench` stays on its line).
+fn keep_decor(old: &mut Value, mut value: Value) {
+    *value.decor_mut() = old.decor().clone();
+    *old = value;
 }
 
 /// A 3-vector parameter whose entries may be null (not identifiable).
@@ -334,12 +342,9 @@ fn value_number(value: &Value) -> Option<f64> {
 }
 
 /// Replaces a key's value, keeping the comments around it.
-fn set_keeping_decor(table: &mut Table, key: &str, mut value: Value) {
+fn set_keeping_decor(table: &mut Table, key: &str, value: Value) {
     match table.get_mut(key).and_then(Item::as_value_mut) {
-        Some(old) => {
-            *value.decor_mut() = old.decor().clone();
-            *old = value;
-        }
+        Some(old) => keep_decor(old, value),
         None => {
             table.insert(key, Item::Value(value));
         }
@@ -421,7 +426,7 @@ pub fn apply_to_file(
     joints: &[&str],
     last_link: &str,
 ) -> Result<Applied> {
-    let source = std::fs::read_to_string(path)
+    let source = crate::bounded::read_description(path)
         .with_context(|| format!("{}: cannot read", path.display()))?;
     let updated = apply_to_text(&source, diagnosis, joints, last_link)
         .with_context(|| path.display().to_string())?;

@@ -248,3 +248,31 @@ fn payload_becomes_a_fixed_child_body() {
         "{out}"
     );
 }
+
+/// A comment after a value `--apply` changes stays on its line, in an
+/// `[joints.effects]` table and in an inline one.
+#[test]
+fn trailing_comments_on_changed_lines_are_kept() {
+    let d = diagnosis(vec![effect(
+        Kind::CoulombFriction,
+        Some(1),
+        serde_json::json!({"level": 0.1}),
+    )]);
+    let table = SOURCE.replace(
+        "effects = { viscous = 0.1 }\n",
+        "[joints.effects]\ncoulomb = 0.2  # measured on the bench\n",
+    );
+    let out = apply_to_text(&table, &d, &["j1"], "a").unwrap();
+    assert!(
+        out.contains("coulomb = 0.30000000000000004  # measured on the bench")
+            || out.contains("coulomb = 0.3  # measured on the bench"),
+        "{out}"
+    );
+    let inline = SOURCE.replace(
+        "effects = { viscous = 0.1 }\n",
+        "effects = { coulomb = 0.2 } # measured on the bench\n",
+    );
+    let out = apply_to_text(&inline, &d, &["j1"], "a").unwrap();
+    assert!(out.contains("} # measured on the bench"), "{out}");
+    codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+}
