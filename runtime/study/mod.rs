@@ -31,7 +31,7 @@ mod recording;
 pub mod report;
 mod training;
 
-pub use recording::{limits, record_trajectory, trajectory_seed};
+pub use recording::{limits, record_reference, record_trajectory, trajectory_seed};
 use recording::{open_loop_evaluation, record, record_noisy};
 use training::{Job, Recipe, Trained, jobs, save_networks, train_all};
 
