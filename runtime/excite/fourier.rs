@@ -343,6 +343,37 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+
+        /// Whatever the coefficients, the scaled motion keeps its limits on
+        /// the grid it was scaled on, and rests at both ends.
+        #[test]
+        fn any_coefficients_scale_into_the_limits(
+            raw in proptest::collection::vec(-5.0f64..5.0, 13),
+            pause in 0.0f64..4.0,
+        ) {
+            let s = Schedule::new(12.0, (0.5, pause), None, 6, 2);
+            let bounds = Bounds {
+                position: vec![(-0.3, 2.0)],
+                velocity: vec![0.8],
+                acceleration: vec![1.5],
+                effort: vec![None],
+            };
+            let series = JointSeries::from_raw(&raw, bounds.position[0], &s, 1);
+            let grid = s.grid(1200);
+            let scaled = series.scaled(kinematic_scale(&series, &s, &grid, &bounds, 0));
+            for &t in &grid {
+                let (q, qd, qdd) = scaled.eval(&s, t);
+                proptest::prop_assert!((-0.3..=2.0).contains(&q) && qd.abs() <= 0.8 && qdd.abs() <= 1.5);
+            }
+            for t in [0.0, 12.0] {
+                let (_, qd, qdd) = scaled.eval(&s, t);
+                proptest::prop_assert!(qd.abs() < 1e-9 && qdd.abs() < 1e-9);
+            }
+        }
+    }
+
     #[test]
     fn scaling_keeps_every_limit_on_the_grid() {
         let s = schedule();
