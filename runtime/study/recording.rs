@@ -50,6 +50,7 @@ pub(super) fn record(
         limits: limits(controller, config)?,
         ..WaypointConfig::default()
     };
+    progress(0, config.trajectories, "recording trajectories");
     let recordings = parallel_map(
         config.trajectories,
         |k| -> Result<(Trajectory, Trajectory)> {
@@ -79,6 +80,7 @@ pub(super) fn record(
         references,
         train,
         test,
+        test_from: None,
     })
 }
 
@@ -107,6 +109,7 @@ impl Data {
             references: self.references.clone(),
             train,
             test,
+            test_from: self.test_from,
         }
     }
 }
