@@ -176,6 +176,18 @@ fn bad_arguments_are_named() {
             "excite",
             "--model",
             "planar_2link",
+            "--harmonics",
+            "2",
+            "--out",
+            out,
+        ],
+        "--pause 0",
+    );
+    fails(
+        &[
+            "excite",
+            "--model",
+            "planar_2link",
             "--duration",
             "3",
             "--rest",

@@ -245,6 +245,13 @@ fn check(model: &dyn Dynamics, bounds: &Bounds, config: &Config) -> Result<()> {
             config.harmonics
         );
     }
+    if config.pause > 0.0 && config.harmonics < 3 {
+        bail!(
+            "--harmonics {} with a pause: at least 3 are needed (four conditions hold the motion \
+             at rest at its ends and at the pause); or pass --pause 0",
+            config.harmonics
+        );
+    }
     if config.duration <= 2.0 * config.rest + config.pause + 1.0 / config.rate {
         bail!(
             "--duration {} s leaves no time to move beside the rests of {} s at each end and the \
