@@ -1,6 +1,8 @@
 //! Diagnosis of 3 raw recordings of 20 s at 1 kHz at the defaults (the
 //! preprocessing chosen from the data, filtering, parallel filtering of
-//! every column, selection): `cargo bench --bench diagnose`.
+//! every column, selection), and the design of the recording that comes
+//! before it (`sdnn excite` on the Panda, 20 s, defaults):
+//! `cargo bench --bench diagnose`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sdnn::diagnose::{Settings, diagnose};
@@ -34,5 +36,63 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// `sdnn excite --model panda --duration 20` without the files: the
+/// design and its comparison with one default recording.
+fn excite(c: &mut Criterion) {
+    use sdnn::excite::{Config, design, fourier::Bounds};
+    use sdnn::sim::reference::{Reference, WaypointTrajectory};
+    let model = sdnn::model("panda").expect("panda");
+    let config = StudyConfig::default();
+    let limits = study::limits(model, &config).expect("limits");
+    let dof = model.dof();
+    let description = sdnn::dynamics::parsed_description(model).expect("description");
+    let bounds = Bounds {
+        position: (0..dof)
+            .map(|j| {
+                let (lo, hi) = limits.position[j];
+                let m = limits.margin(j, 0.1);
+                (lo + m, hi - m)
+            })
+            .collect(),
+        velocity: limits.velocity.clone(),
+        acceleration: limits.acceleration.clone(),
+        effort: description
+            .chain()
+            .free_bodies()
+            .map(|b| b.limits.and_then(|l| l.effort))
+            .collect(),
+    };
+    let waypoints = WaypointConfig {
+        limits,
+        ..WaypointConfig::default()
+    };
+    let reference = WaypointTrajectory::new(&waypoints, 1).expect("reference");
+    let default = |t: f64| {
+        let (q, qd, qdd) = reference.sample(t);
+        (
+            q.as_slice().to_vec(),
+            qd.as_slice().to_vec(),
+            qdd.as_slice().to_vec(),
+        )
+    };
+    let levers = vec![1.0; dof];
+    let mut group = c.benchmark_group("excite");
+    group.sample_size(10);
+    group.bench_function("panda, 20 s, defaults", |b| {
+        b.iter(|| {
+            design(
+                model,
+                &bounds,
+                &levers,
+                &Config::new(20.0, dof),
+                &[&default],
+                &[],
+            )
+            .expect("design")
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench, excite);
 criterion_main!(benches);

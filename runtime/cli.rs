@@ -54,6 +54,9 @@ pub enum Command {
     /// missing effect (friction, armature, offset, payload or link error,
     /// torque scale or delay, base tilt, spring, ripple).
     Diagnose(crate::commands::DiagnoseArgs),
+    /// Design the motion to record for identification: Fourier excitation
+    /// inside the limits, compared with the default random recording.
+    Excite(crate::commands::ExciteArgs),
     /// Convert a URDF into a TOML robot description (chain cut, locks, payloads).
     ImportUrdf(crate::imports::ImportUrdfArgs),
     /// Convert a log with one text file per channel (line-major, e.g. the
@@ -86,6 +89,7 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> Result<()> {
         Command::Evaluate(args) => crate::commands::evaluate(&args),
         Command::Predict(args) => crate::commands::predict(&args),
         Command::Diagnose(args) => crate::commands::diagnose(&args),
+        Command::Excite(args) => crate::commands::excite(&args),
         Command::ImportUrdf(args) => crate::imports::import_urdf_command(&args),
         Command::ImportLog(args) => crate::imports::import_log_command(&args),
     }

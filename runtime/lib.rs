@@ -14,6 +14,7 @@ pub mod described;
 pub mod diagnose;
 pub mod dynamics;
 pub mod errors;
+pub mod excite;
 pub mod identified;
 pub mod import_log;
 pub mod import_urdf;

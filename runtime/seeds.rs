@@ -21,6 +21,9 @@ pub enum Purpose {
     Mix = 4,
     /// Initial weights and batches of network k.
     Network = 5,
+    /// Designed excitation: 0 the random states that reduce the
+    /// parameters, 1 the search.
+    Excitation = 6,
 }
 
 /// The seed for item `index` of `purpose` under `master`.

@@ -7,6 +7,7 @@ mod data_effects;
 mod descriptions;
 mod diagnose;
 mod dynamics;
+mod excite;
 mod freshness;
 mod generated_code;
 mod held_joints;

@@ -23,10 +23,12 @@ use crate::trajectory::{
 };
 
 mod diagnosis;
+mod excitation;
 mod pointwise;
 mod reproduction;
 
 pub use diagnosis::{DiagnoseArgs, diagnose};
+pub use excitation::{ExciteArgs, excite};
 pub use pointwise::{PointwiseArgs, pose, qdd, tau};
 pub use reproduction::{
     ReproduceArgs, Situation, StudyArgs, StudyRunArgs, reproduce, study_command,
@@ -52,6 +54,11 @@ pub struct SimulateArgs {
     pub out: PathBuf,
     #[arg(long, default_value_t = 1, value_parser = ranges::seed)]
     pub seed: u64,
+    /// Record this planned motion (`t,q1..qN,qd1..qdN,qdd1..qddN`, e.g.
+    /// from `sdnn excite`) instead of random ones: written as
+    /// trajectory_01.csv.
+    #[arg(long, conflicts_with_all = ["count", "duration"])]
+    pub trajectory: Option<PathBuf>,
     /// Number of trajectories (1-1000).
     #[arg(long, default_value_t = 14, value_parser = ranges::integer(1, 1000, "run several times with other --seed and --out"))]
     pub count: usize,
@@ -91,6 +98,9 @@ fn check_simulated_seconds(what: &str, seconds: f64, dof: usize) -> Result<()> {
 }
 
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
+    if let Some(path) = &args.trajectory {
+        return simulate_plan(args, path);
+    }
     let total = args.count as f64 * args.duration;
     if total > MOST_SIMULATED_SECONDS {
         bail!(
@@ -163,6 +173,42 @@ fn refuse_stale_recordings(dir: &Path, count: usize) -> Result<()> {
         stale[..shown].join(", "),
         if stale.len() > shown { ", ..." } else { "" }
     )
+}
+
+/// Records one planned motion read from `path` on the virtual robot.
+fn simulate_plan(args: &SimulateArgs, path: &Path) -> Result<()> {
+    let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    let options = ReadOptions {
+        dof: Some(plant.dof()),
+        ..ReadOptions::default()
+    };
+    crate::output::note_input(path);
+    let plan = crate::trajectory::read_plan_csv(path, &options)?;
+    if plan
+        .t()
+        .last()
+        .zip(plan.t().first())
+        .is_some_and(|(l, f)| l - f > MOST_SIMULATED_SECONDS)
+    {
+        bail!(
+            "{}: the plan lasts more than {MOST_SIMULATED_SECONDS} s, more than one run records",
+            path.display()
+        );
+    }
+    crate::output::create_folder(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let reference = crate::sim::replay::Planned::new(&plan);
+    let seed = study::trajectory_seed(args.seed, 0);
+    let recording = study::record_reference(plant, nominal, &reference, seed, 1.0)
+        .with_context(|| format!("recording {}", path.display()))?;
+    let out = args.out.join("trajectory_01.csv");
+    write_csv(&out, &recording.measured)?;
+    println!(
+        "{} recorded on the virtual robot into {}",
+        path.display(),
+        out.display()
+    );
+    Ok(())
 }
 
 #[derive(Debug, Args)]

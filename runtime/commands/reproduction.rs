@@ -251,11 +251,28 @@ fn run_study(
     format: Format,
     study: impl FnOnce(study::Progress<'_>) -> Result<study::StudyResult>,
 ) -> Result<()> {
+    // Said at once: the first stage reports only when its first item is
+    // done, and without a terminal the bar is hidden, so a run printed
+    // nothing for its first minute. Each new stage gets a line when the
+    // bar cannot show it.
+    eprintln!(
+        "study: recording, preprocessing and training; results go to {}",
+        out.display()
+    );
     let bar = progress_bar();
+    bar.set_message("starting");
+    bar.tick();
+    let stage_now = std::sync::Mutex::new(String::new());
     let report = |done: usize, total: usize, stage: &str| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
         bar.set_message(stage.to_string());
+        if let Ok(mut now) = stage_now.lock() {
+            if *now != stage && bar.is_hidden() {
+                eprintln!("study: {stage} ({done}/{total})");
+            }
+            *now = stage.to_string();
+        }
     };
     let result = study(&report)?;
     bar.finish_and_clear();

@@ -6,4 +6,5 @@
 pub mod models;
 pub mod plant;
 pub mod reference;
+pub mod replay;
 pub mod simulate;

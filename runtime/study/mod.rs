@@ -31,7 +31,7 @@ mod recording;
 pub mod report;
 mod training;
 
-pub use recording::{limits, record_trajectory, trajectory_seed};
+pub use recording::{limits, record_reference, record_trajectory, trajectory_seed};
 use recording::{open_loop_evaluation, record, record_noisy};
 use training::{Job, Recipe, Trained, jobs, save_networks, train_all};
 
@@ -125,6 +125,10 @@ pub struct StudyResult {
     pub train_trajectories: Vec<usize>,
     #[serde(serialize_with = "one_based")]
     pub test_trajectories: Vec<usize>,
+    /// Measured recordings: each one's test piece starts this long (s)
+    /// after its start (the test "trajectories" are those pieces).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub test_from: Option<f64>,
     pub models: Vec<ModelResult>,
     /// Analytical-model test MSE with each filter (the zero-phase comparison).
     pub filter_comparison: Vec<(String, f64)>,
@@ -141,6 +145,8 @@ struct Data {
     references: Vec<Trajectory>,
     train: Vec<usize>,
     test: Vec<usize>,
+    /// Measured recordings: each is tested from this time on (s).
+    test_from: Option<f64>,
 }
 
 /// The models of a study on the virtual robot.
@@ -237,6 +243,7 @@ pub fn run_on_measurements(
         references: Vec::new(),
         train: Vec::new(),
         test: Vec::new(),
+        test_from: Some(split.test_from),
     };
     for (r, raw) in recordings.iter().enumerate() {
         if raw.dof() != nominal.dof() {
@@ -325,6 +332,7 @@ fn analyse(
         nominal: nominal.name().to_string(),
         train_trajectories: data.train.clone(),
         test_trajectories: data.test.clone(),
+        test_from: data.test_from,
         models,
         filter_comparison,
         config: config.clone(),

@@ -50,6 +50,7 @@ pub(super) fn record(
         limits: limits(controller, config)?,
         ..WaypointConfig::default()
     };
+    progress(0, config.trajectories, "recording trajectories");
     let recordings = parallel_map(
         config.trajectories,
         |k| -> Result<(Trajectory, Trajectory)> {
@@ -79,6 +80,7 @@ pub(super) fn record(
         references,
         train,
         test,
+        test_from: None,
     })
 }
 
@@ -107,6 +109,7 @@ impl Data {
             references: self.references.clone(),
             train,
             test,
+            test_from: self.test_from,
         }
     }
 }
@@ -136,6 +139,18 @@ pub(super) fn record_noisy(
     noise_scale: f64,
 ) -> Result<crate::sim::simulate::Recording> {
     let reference = WaypointTrajectory::new(waypoints, seed)?;
+    record_reference(plant, controller, &reference, seed, noise_scale)
+}
+
+/// Records the planned motion `reference` on the virtual robot (sensor
+/// noise scaled by `noise_scale`, drawn from `seed`).
+pub fn record_reference(
+    plant: &dyn Dynamics,
+    controller: &dyn Dynamics,
+    reference: &dyn crate::sim::reference::Reference,
+    seed: u64,
+    noise_scale: f64,
+) -> Result<crate::sim::simulate::Recording> {
     let mut sim = SimConfig::default();
     let description = parsed_description(controller)?;
     let bodies: Vec<&codegen::Body> = description.chain().free_bodies().collect();
@@ -148,7 +163,7 @@ pub(super) fn record_noisy(
     Ok(simulate(
         &Compiled(plant),
         &Compiled(controller),
-        &reference,
+        reference,
         &sim,
         seed,
     )?)

@@ -6,12 +6,12 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use nalgebra::DMatrix;
 
-use super::{StudyResult, slug};
+use super::{ANALYTICAL, IDENTIFIED, ModelResult, StudyResult, slug};
 use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
 use crate::mlp::{Dataset, Mlp};
 use crate::report::plot::{BarChart, LinePlot, Series, Style, bar_chart, grid_plot};
-use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv, write_markdown};
+use crate::report::table::{Comparison, ComparisonRow, to_markdown, write_csv};
 use crate::trajectory::Trajectory;
 
 /// What the plots are drawn from.
@@ -42,8 +42,25 @@ pub fn comparison(result: &StudyResult) -> Comparison {
             )],
         })
         .collect();
+    let title = match result.test_from {
+        Some(from) => format!(
+            "Test MSE on the part of each of the {} recordings after its first {from} s, {} seeds per network",
+            result.test_trajectories.len(),
+            result.config.seeds
+        ),
+        None => simulated_title(result),
+    };
     Comparison {
-        title: if result.config.splits > 1 {
+        title,
+        unit: "N m^2".into(),
+        rows,
+    }
+}
+
+/// The title of a simulated study: whole held-out trajectories.
+fn simulated_title(result: &StudyResult) -> String {
+    {
+        if result.config.splits > 1 {
             format!(
                 "Test MSE on {} held-out trajectories, {} seeds per network x {} train/test splits",
                 result.test_trajectories.len(),
@@ -56,16 +73,25 @@ pub fn comparison(result: &StudyResult) -> Comparison {
                 result.test_trajectories.len(),
                 result.config.seeds
             )
-        },
-        unit: "N m^2".into(),
-        rows,
+        }
     }
 }
 
 /// Writes results.{md,csv,json} and the plots below `out`.
 pub fn write(result: &StudyResult, figures: &Figures<'_>, out: &Path) -> Result<()> {
     let table = comparison(result);
-    write_markdown(out.join("results.md"), &table)?;
+    let mut markdown = to_markdown(&table);
+    if result.models.iter().any(|m| m.open_loop_rms.is_some()) {
+        markdown.push_str(&format!(
+            "\nopen-loop q RMS [rad]: each model's torques for the planned motion of the first \
+             test trajectory, replayed on the plant without feedback for its first {} s (thesis \
+             4.3.2); the RMS over joints and samples of the joint angle's distance from the plan \
+             (one network per model, seed 0).\n",
+            result.config.open_loop_seconds
+        ));
+    }
+    crate::output::write(&out.join("results.md"), markdown.as_bytes())
+        .with_context(|| format!("writing {}", out.join("results.md").display()))?;
     write_csv(out.join("results.csv"), &table)?;
     let json = serde_json::to_string_pretty(result)?;
     crate::output::write(&out.join("results.json"), json.as_bytes())
@@ -238,9 +264,16 @@ fn mse_bars(result: &StudyResult, plots: &Path) -> Result<()> {
     let joints = result.models.first().map_or(0, |m| m.mse_per_joint.len());
     let mut groups: Vec<String> = (1..=joints).map(|j| format!("joint {j}")).collect();
     groups.push("mean".into());
-    let bars = result
+    // The networks first, in training order, so that each has the colour
+    // it has in training_curves.svg (colours follow the series' order);
+    // the analytical and identified models, which train nothing, last.
+    let trains = |m: &&ModelResult| m.name != ANALYTICAL && m.name != IDENTIFIED;
+    let ordered = result
         .models
         .iter()
+        .filter(trains)
+        .chain(result.models.iter().filter(|m| !trains(m)));
+    let bars = ordered
         .map(|m| {
             let mut values = m.mse_per_joint.clone();
             values.push(m.mse_mean);

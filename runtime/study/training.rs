@@ -197,6 +197,7 @@ pub(super) fn train_all(
         })
         .collect::<Result<_>>()?;
     let total = jobs.len() * config.seeds;
+    progress(0, total, "training networks");
     let done = Mutex::new(0usize);
     let results = parallel_map(total, |i| -> Result<(Vec<f64>, Mlp)> {
         let (job, seed) = (&jobs[i / config.seeds], (i % config.seeds) as u64);

@@ -17,9 +17,11 @@ use std::path::{Path, PathBuf};
 use nalgebra::DMatrix;
 use thiserror::Error;
 
+mod plan;
 mod read;
 mod sampling;
 
+pub use plan::{read_plan_csv, write_plan_csv};
 use read::*;
 pub use read::{
     is_contract_column, read_csv, read_forward_csv, read_positions_csv, read_states_csv,

@@ -106,6 +106,19 @@ pub(super) const POSITIONS_SCHEMA: Schema = Schema {
     expected: "q1..qN",
 };
 
+/// A planned motion (`sdnn excite`, `simulate --trajectory`): a
+/// recording's `tau` columns may be present (read and not used).
+pub(super) const PLAN_SCHEMA: Schema = Schema {
+    time: Presence::Required,
+    channels: [
+        Presence::Required,
+        Presence::Required,
+        Presence::Required,
+        Presence::Optional,
+    ],
+    expected: "t, q1..qN, qd1..qdN, qdd1..qddN",
+};
+
 pub(super) const TORQUES_SCHEMA: Schema = Schema {
     time: Presence::Forbidden,
     channels: [
@@ -416,6 +429,17 @@ pub(super) fn parse_cell(
 }
 
 impl Table {
+    /// The time column (empty without one) after its checks.
+    pub(super) fn checked_time(&self, path: &Path) -> Result<Vec<f64>, TrajectoryError> {
+        let t = self
+            .layout
+            .time
+            .map(|i| self.columns[i].clone())
+            .unwrap_or_default();
+        check_time(path, &t, &self.lines)?;
+        Ok(t)
+    }
+
     /// A channel as samples x joints, converted to radians when asked.
     pub(super) fn matrix(&self, ch: Channel, units: Units) -> Option<DMatrix<f64>> {
         let cols = self.layout.channels[ch.index()].as_ref()?;

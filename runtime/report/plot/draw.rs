@@ -19,6 +19,9 @@ pub(crate) const TITLE_FONT: (&str, u32) = ("sans-serif", 22);
 pub(crate) const LABEL_FONT: (&str, u32) = ("sans-serif", 15);
 /// Font of axis descriptions.
 pub(crate) const AXIS_DESC_FONT: (&str, u32) = ("sans-serif", 17);
+/// Most y tick labels on a linear and on a log axis.
+const LINEAR_LABELS: usize = 10;
+const LOG_LABELS: usize = 5;
 /// Radius in pixels of the markers of [`Style::Points`].
 const POINT_RADIUS: u32 = 2;
 
@@ -73,6 +76,13 @@ where
         .axis_desc_style(AXIS_DESC_FONT)
         .x_label_formatter(&|v| axis_tick(*v, &prep.x_range))
         .y_label_formatter(&|v| axis_tick(*v, &prep.y_range))
+        // A log axis asks for fewer labels: its key points include the
+        // 2..9 multiples of each decade, which overlap in a grid's panel.
+        .y_labels(if plot.log_y {
+            LOG_LABELS
+        } else {
+            LINEAR_LABELS
+        })
         .draw()?;
     for (i, (s, p)) in plot.series.iter().zip(&prep.series).enumerate() {
         draw_series(&mut chart, s, p, colour(i))?;

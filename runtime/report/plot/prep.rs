@@ -2,7 +2,7 @@
 
 use std::ops::Range;
 
-use super::{LinePlot, PlotReport, Series};
+use super::{LinePlot, PlotReport, Series, Style};
 use crate::report::error::InputError;
 
 /// Largest number of points drawn per series before decimation kicks in.
@@ -102,7 +102,16 @@ fn prepare_series(s: &Series, log_y: bool) -> Result<PreparedSeries, InputError>
     }
     let total: usize = segments.iter().map(Vec::len).sum();
     let decimated = total > MAX_POINTS;
-    if decimated {
+    if decimated && s.style == Style::Points {
+        // A scatter keeps every k-th point: its density is what it shows
+        // (min/max per bucket would keep only the extremes, two bands
+        // with an empty gap where Gaussian data are densest).
+        let stride = total.div_ceil(MAX_POINTS);
+        segments = segments
+            .iter()
+            .map(|seg| seg.iter().copied().step_by(stride).collect())
+            .collect();
+    } else if decimated {
         let bucket = total.div_ceil(MAX_POINTS / 2);
         segments = segments.iter().map(|seg| decimate(seg, bucket)).collect();
     }
