@@ -33,6 +33,8 @@ mod generate;
 mod lagrangian;
 #[cfg(feature = "symbolic")]
 mod listing;
+#[cfg(feature = "symbolic")]
+mod printer;
 pub mod program;
 pub mod recursive;
 #[cfg(feature = "symbolic")]

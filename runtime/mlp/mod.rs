@@ -3,7 +3,7 @@
 //! builder, `check()` validates it, `fit` trains.
 //!
 //! ```
-//! use sdnn::mlp::{Activation, Mlp};
+//! use sdnn_runtime::mlp::{Activation, Mlp};
 //! let params = Mlp::params()
 //!     .hidden(vec![32, 32])
 //!     .activation(Activation::Tanh)

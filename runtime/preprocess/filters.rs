@@ -4,7 +4,7 @@
 //! Every filter returns as many samples as it is given.
 //!
 //! ```
-//! use sdnn::preprocess::{central_difference, moving_average, Centering};
+//! use sdnn_runtime::preprocess::{central_difference, moving_average, Centering};
 //! let v = [0.0, 1.0, 2.0, 3.0, 4.0];
 //! assert_eq!(moving_average(&v, 3, Centering::Centered).unwrap(), v);
 //! assert_eq!(central_difference(&v, 0.5).unwrap(), vec![2.0; 5]);
