@@ -21,6 +21,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Canonical paths of the files this process has read.
 static INPUTS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Temporary files being written (not yet renamed over their target).
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// Whether outputs over inputs are refused (the `sdnn` command).
 static PROTECT: AtomicBool = AtomicBool::new(false);
 
@@ -39,6 +41,35 @@ pub fn note_input(path: &Path) {
         if !inputs.contains(&canonical) {
             inputs.push(canonical);
         }
+    }
+}
+
+/// Removes the temporary files of writes in progress: what the `sdnn`
+/// binary does on an interrupt (Ctrl-C, SIGTERM) before it exits, so no
+/// `.sdnn-XXXX.tmp` is left beside the outputs. A finished write is
+/// complete and stays.
+pub fn remove_pending() {
+    let pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+    for path in pending.iter() {
+        let _ = fs::remove_file(path);
+    }
+}
+
+/// Notes a temporary file while it is written; unnoted when dropped.
+struct Pending(PathBuf);
+
+impl Pending {
+    fn new(path: &Path) -> Pending {
+        let mut pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+        pending.push(path.to_path_buf());
+        Pending(path.to_path_buf())
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        let mut pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
+        pending.retain(|p| p != &self.0);
     }
 }
 
@@ -170,6 +201,7 @@ fn replace(target: &Path, body: impl FnOnce(&mut dyn Write) -> io::Result<()>) -
         .prefix(".sdnn-")
         .suffix(".tmp")
         .tempfile_in(dir)?;
+    let _pending = Pending::new(temporary.path());
     {
         let mut w = BufWriter::new(temporary.as_file_mut());
         body(&mut w)?;
@@ -200,6 +232,38 @@ mod tests {
         write(&path, b"two").unwrap();
         assert_eq!(fs::read_to_string(&path).unwrap(), "two");
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn an_interrupt_removes_the_temporary_file_of_a_write_in_progress() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.txt");
+        let temporaries = || {
+            fs::read_dir(dir.path())
+                .unwrap()
+                .filter_map(|e| e.ok()?.file_name().into_string().ok())
+                .filter(|name| name.starts_with(".sdnn-"))
+                .count()
+        };
+        let result = write_with(&path, |w| {
+            w.write_all(b"half")?;
+            assert_eq!(
+                temporaries(),
+                1,
+                "the write in progress has its temporary file"
+            );
+            // What the binary's interrupt handler calls.
+            remove_pending();
+            assert_eq!(temporaries(), 0);
+            Ok(())
+        });
+        // The interrupted write cannot complete; a later write still works.
+        assert!(result.is_err());
+        assert!(!path.exists());
+        write(&path, b"whole").unwrap();
+        remove_pending();
+        assert_eq!(fs::read_to_string(&path).unwrap(), "whole");
+        assert_eq!(temporaries(), 0);
     }
 
     #[cfg(unix)]

@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     restore_sigpipe();
+    remove_temporaries_on_interrupt();
     sdnn::install_models();
     sdnn::output::protect_inputs();
     match sdnn::cli::run(std::env::args_os()) {
@@ -16,6 +17,18 @@ fn main() -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// On Ctrl-C or SIGTERM, the temporary files of writes in progress are
+/// removed before the process ends (exit code 130): an interrupted command
+/// leaves its finished outputs and no `.sdnn-XXXX.tmp` beside them.
+fn remove_temporaries_on_interrupt() {
+    // Without a handler (another one already installed) the default
+    // action stays; nothing else depends on it.
+    let _ = ctrlc::set_handler(|| {
+        sdnn::output::remove_pending();
+        std::process::exit(130);
+    });
 }
 
 fn is_broken_pipe(error: &anyhow::Error) -> bool {

@@ -248,3 +248,41 @@ fn a_recording_under_four_seconds_is_refused() {
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("at least 4 s"), "{stderr}");
 }
+
+/// An interrupted command ends with exit code 130 and leaves no temporary
+/// file of a write in progress beside its outputs.
+#[test]
+fn an_interrupt_leaves_no_temporary_files() {
+    use std::process::{Command, Stdio};
+    let dir = Dir::new();
+    let out = dir.path().join("results");
+    for delay_ms in [300, 1500] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_sdnn"))
+            .args(["reproduce", "--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("run sdnn");
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        // SAFETY: kill(2) on the child's own process id.
+        unsafe {
+            libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+        }
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "after {delay_ms} ms: {status:?}");
+        let mut stack = vec![dir.path().to_path_buf()];
+        while let Some(folder) = stack.pop() {
+            for entry in std::fs::read_dir(&folder).unwrap().flatten() {
+                let name = entry.file_name().to_string_lossy().into_owned();
+                assert!(
+                    !name.starts_with(".sdnn-"),
+                    "{name} left in {}",
+                    folder.display()
+                );
+                if entry.path().is_dir() {
+                    stack.push(entry.path());
+                }
+            }
+        }
+    }
+}
