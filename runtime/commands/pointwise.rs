@@ -20,8 +20,8 @@ pub struct PointwiseArgs {
     /// description file ending in .toml.
     #[arg(long)]
     pub model: String,
-    /// Input file (`-`: standard input); other contract columns (`t`,
-    /// a recording's torques or accelerations) are allowed and not used.
+    /// Input file (`-`: standard input); contract columns the command
+    /// does not use (`t`, or a recording's other channels) are allowed.
     #[arg(long)]
     pub input: PathBuf,
     /// File to write; standard output if absent or `-`.
