@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::util::{Dir, sdnn, sdnn_json};
+use crate::util::{Dir, sdnn, sdnn_json, simulated_recordings};
 
 /// One recording, columns `t, q.., qd.., tau..`, read from a CSV of the contract.
 struct Recording {
@@ -114,22 +114,7 @@ fn bag_of(rec: &Recording, path: &Path, names: &[&str], order: &[usize], gripper
 
 /// A recording of the default virtual robot, 3 s.
 fn simulated(dir: &Dir) -> PathBuf {
-    let out = dir.path().join("rec");
-    let run = sdnn(&[
-        "simulate",
-        "--count",
-        "1",
-        "--duration",
-        "3",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    out.join("trajectory_01.csv")
+    simulated_recordings(dir, 1, 3.0).remove(0)
 }
 
 fn evaluate_mse(data: &Path) -> Vec<f64> {

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use crate::util::{Dir, sdnn};
+use crate::util::{Dir, sdnn, simulated_recordings};
 
 /// The run failed cleanly: exit code 2 and a message containing `needle`.
 fn refused(run: &Output, needle: &str) {
@@ -30,22 +30,9 @@ fn to_full_device(args: &[&str]) -> Output {
 
 /// Two 5 s recordings of the default virtual robot in `dir/rec`.
 fn recordings(dir: &Dir) -> [PathBuf; 2] {
-    let out = dir.path().join("rec");
-    let run = sdnn(&[
-        "simulate",
-        "--count",
-        "2",
-        "--duration",
-        "5",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    [out.join("trajectory_01.csv"), out.join("trajectory_02.csv")]
+    simulated_recordings(dir, 2, 5.0)
+        .try_into()
+        .expect("two recordings")
 }
 
 fn s(path: &Path) -> &str {

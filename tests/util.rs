@@ -80,6 +80,30 @@ pub fn sdnn(args: &[&str]) -> Output {
         .expect("run sdnn")
 }
 
+/// `count` recordings of `seconds` each on the default virtual robot, in
+/// `dir/rec` (`sdnn simulate`, which must succeed).
+pub fn simulated_recordings(dir: &Dir, count: usize, seconds: f64) -> Vec<PathBuf> {
+    let out = dir.path().join("rec");
+    let (count_text, seconds_text) = (count.to_string(), seconds.to_string());
+    let run = sdnn(&[
+        "simulate",
+        "--count",
+        &count_text,
+        "--duration",
+        &seconds_text,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    (1..=count)
+        .map(|k| out.join(format!("trajectory_{k:02}.csv")))
+        .collect()
+}
+
 /// Runs the `sdnn` binary, which must succeed, and parses its JSON output.
 pub fn sdnn_json(args: &[&str]) -> serde_json::Value {
     let run = sdnn(args);
