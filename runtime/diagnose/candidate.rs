@@ -110,13 +110,7 @@ impl Shape {
                 for k in 0..10 {
                     jacobian[(k, 0)] = unit[k];
                 }
-                let (x, y, z) = (c.x, c.y, c.z);
-                let partial = [
-                    [0.0, 1.0, 0.0, 0.0, 0.0, -y, 2.0 * x, -z, 0.0, 2.0 * x],
-                    [0.0, 0.0, 1.0, 0.0, 2.0 * y, -x, 0.0, 0.0, -z, 2.0 * y],
-                    [0.0, 0.0, 0.0, 1.0, 2.0 * z, 0.0, 2.0 * z, -x, -y, 0.0],
-                ];
-                for (a, row) in partial.iter().enumerate() {
+                for (a, row) in unit_partials(&c).iter().enumerate() {
                     for k in 0..10 {
                         jacobian[(k, a + 1)] = m * row[k];
                     }
@@ -131,17 +125,82 @@ impl Shape {
                 let unit = point_mass(1.0, &c);
                 let coefficients = (0..10).map(|k| m * unit[k] + offset[k]).collect();
                 // d(m unit(h / m)) / dh = d unit / dc.
-                let (x, y, z) = (c.x, c.y, c.z);
-                let partial = [
-                    [0.0, 1.0, 0.0, 0.0, 0.0, -y, 2.0 * x, -z, 0.0, 2.0 * x],
-                    [0.0, 0.0, 1.0, 0.0, 2.0 * y, -x, 0.0, 0.0, -z, 2.0 * y],
-                    [0.0, 0.0, 0.0, 1.0, 2.0 * z, 0.0, 2.0 * z, -x, -y, 0.0],
-                ];
+                let partial = unit_partials(&c);
                 let jacobian = DMatrix::from_fn(10, 3, |k, a| partial[a][k]);
                 (coefficients, jacobian)
             }
         }
     }
+}
+
+impl Shape {
+    /// The sum over the coefficients of `weights[k]` times coefficient k's
+    /// Hessian in theta: what the Gauss-Newton Hessian leaves out. With it
+    /// the descent takes exact Newton steps, which cross the valley along
+    /// which a body trades mass for lever arm in a few steps where
+    /// Gauss-Newton crawls (the residuals of real data are not small).
+    pub(super) fn curvature(&self, theta: &[f64], weights: &[f64]) -> DMatrix<f64> {
+        match self {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
+                DMatrix::zeros(theta.len(), theta.len())
+            }
+            Shape::Tilt { gravity, .. } => {
+                let (a, b, g) = (theta[0], theta[1], gravity.norm());
+                let s = (g * g - a * a - b * b).max(1e-12 * g * g).sqrt();
+                let cube = s * s * s;
+                let w = weights[2];
+                DMatrix::from_row_slice(
+                    2,
+                    2,
+                    &[
+                        -w * (1.0 / s + a * a / cube),
+                        -w * a * b / cube,
+                        -w * a * b / cube,
+                        -w * (1.0 / s + b * b / cube),
+                    ],
+                )
+            }
+            Shape::Body { .. } => {
+                let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
+                let second = unit_curvature(weights);
+                let mut h = DMatrix::zeros(4, 4);
+                for (a, row) in unit_partials(&c).iter().enumerate() {
+                    let cross: f64 = row.iter().zip(weights).map(|(d, w)| d * w).sum();
+                    h[(0, a + 1)] = cross;
+                    h[(a + 1, 0)] = cross;
+                    for b in 0..3 {
+                        h[(a + 1, b + 1)] = m * second[a][b];
+                    }
+                }
+                h
+            }
+            Shape::Moment { base_mass, .. } => {
+                let second = unit_curvature(weights);
+                DMatrix::from_fn(3, 3, |a, b| second[a][b] / base_mass)
+            }
+        }
+    }
+}
+
+/// d point_mass(1, c) / dc_a, row a.
+fn unit_partials(c: &Vector3<f64>) -> [[f64; 10]; 3] {
+    let (x, y, z) = (c.x, c.y, c.z);
+    [
+        [0.0, 1.0, 0.0, 0.0, 0.0, -y, 2.0 * x, -z, 0.0, 2.0 * x],
+        [0.0, 0.0, 1.0, 0.0, 2.0 * y, -x, 0.0, 0.0, -z, 2.0 * y],
+        [0.0, 0.0, 0.0, 1.0, 2.0 * z, 0.0, 2.0 * z, -x, -y, 0.0],
+    ]
+}
+
+/// The sum over k of weights[k] d^2 point_mass(1, c)_k / dc_a dc_b: the
+/// inertia entries are quadratic in c, so it is constant.
+fn unit_curvature(weights: &[f64]) -> [[f64; 3]; 3] {
+    let [ixx, ixy, iyy, ixz, iyz, izz] = [4, 5, 6, 7, 8, 9].map(|k| weights[k]);
+    [
+        [2.0 * (iyy + izz), -ixy, -ixz],
+        [-ixy, 2.0 * (ixx + izz), -iyz],
+        [-ixz, -iyz, 2.0 * (ixx + iyy)],
+    ]
 }
 
 /// Standard parameters (m, m*c, inertia about the origin in the order

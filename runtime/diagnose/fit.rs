@@ -20,6 +20,13 @@ pub(super) struct Moments {
     /// For each candidate column, the moment column that scores it (itself,
     /// or its `applied` column stored after all candidate columns).
     pub(super) applied: Vec<usize>,
+    /// X^T X and X^T r per group summed over the joints, and over
+    /// everything: a fold's normal equations are the total less one group,
+    /// not a sum over every other group and joint.
+    group_xx: Vec<DMatrix<f64>>,
+    group_xr: Vec<DVector<f64>>,
+    total_xx: DMatrix<f64>,
+    total_xr: DVector<f64>,
 }
 
 impl Moments {
@@ -37,22 +44,46 @@ impl Moments {
         }
         let p = columns.len();
         let groups = data.group.iter().max().map_or(0, |g| g + 1);
-        let mut m = Moments {
-            xx: vec![vec![DMatrix::zeros(p, p); data.dof]; groups],
-            xr: vec![vec![DVector::zeros(p); data.dof]; groups],
-            rr: vec![vec![0.0; data.dof]; groups],
-            rows: vec![vec![0; data.dof]; groups],
-            applied,
-        };
+        let mut xx = vec![vec![DMatrix::zeros(p, p); data.dof]; groups];
+        let mut xr = vec![vec![DVector::zeros(p); data.dof]; groups];
+        let mut rr = vec![vec![0.0; data.dof]; groups];
+        let mut rows = vec![vec![0; data.dof]; groups];
         for (r, (&g, &y)) in data.group.iter().zip(data.residual.iter()).enumerate() {
             let j = r % data.dof;
             let x = DVector::from_fn(p, |k, _| columns[k][r]);
-            m.xx[g][j].ger(1.0, &x, &x, 1.0);
-            m.xr[g][j].axpy(y, &x, 1.0);
-            m.rr[g][j] += y * y;
-            m.rows[g][j] += 1;
+            xx[g][j].ger(1.0, &x, &x, 1.0);
+            xr[g][j].axpy(y, &x, 1.0);
+            rr[g][j] += y * y;
+            rows[g][j] += 1;
         }
-        m
+        Moments::from_parts(xx, xr, rr, rows, applied)
+    }
+
+    /// Moments from their per-group, per-joint parts, with the sums over
+    /// joints and groups that the normal equations use.
+    pub(super) fn from_parts(
+        xx: Vec<Vec<DMatrix<f64>>>,
+        xr: Vec<Vec<DVector<f64>>>,
+        rr: Vec<Vec<f64>>,
+        rows: Vec<Vec<usize>>,
+        applied: Vec<usize>,
+    ) -> Moments {
+        let p = xx.first().and_then(|g| g.first()).map_or(0, DMatrix::nrows);
+        let sum_m = |parts: &[DMatrix<f64>]| parts.iter().fold(DMatrix::zeros(p, p), |a, x| a + x);
+        let sum_v = |parts: &[DVector<f64>]| parts.iter().fold(DVector::zeros(p), |a, x| a + x);
+        let group_xx: Vec<DMatrix<f64>> = xx.iter().map(|g| sum_m(g)).collect();
+        let group_xr: Vec<DVector<f64>> = xr.iter().map(|g| sum_v(g)).collect();
+        Moments {
+            total_xx: sum_m(&group_xx),
+            total_xr: sum_v(&group_xr),
+            group_xx,
+            group_xr,
+            xx,
+            xr,
+            rr,
+            rows,
+            applied,
+        }
     }
 
     /// Sums of X^T X and X^T r over the groups `keep` accepts, restricted to `columns`.
@@ -61,20 +92,32 @@ impl Moments {
         columns: &[usize],
         keep: impl Fn(usize) -> bool,
     ) -> (DMatrix<f64>, DVector<f64>) {
-        let k = columns.len();
-        let (mut a, mut b) = (DMatrix::zeros(k, k), DVector::zeros(k));
-        for g in (0..self.xx.len()).filter(|&g| keep(g)) {
-            for j in 0..self.xx[g].len() {
-                let (xx, xr) = (&self.xx[g][j], &self.xr[g][j]);
-                for (c, &column) in columns.iter().enumerate() {
-                    b[c] += xr[column];
-                    for (r, &row) in columns.iter().enumerate() {
-                        a[(r, c)] += xx[(row, column)];
-                    }
-                }
+        let gather = |xx: &DMatrix<f64>, xr: &DVector<f64>| {
+            let k = columns.len();
+            let a = DMatrix::from_fn(k, k, |r, c| xx[(columns[r], columns[c])]);
+            (a, DVector::from_fn(k, |r, _| xr[columns[r]]))
+        };
+        let left_out: Vec<usize> = (0..self.group_xx.len()).filter(|&g| !keep(g)).collect();
+        match left_out[..] {
+            [] => gather(&self.total_xx, &self.total_xr),
+            // A cross-validation fold: everything but one group.
+            [g] => {
+                let (a, b) = gather(&self.total_xx, &self.total_xr);
+                let (ag, bg) = gather(&self.group_xx[g], &self.group_xr[g]);
+                (a - ag, b - bg)
+            }
+            _ => {
+                let kept = (0..self.group_xx.len()).filter(|&g| keep(g));
+                let parts: Vec<_> = kept
+                    .map(|g| gather(&self.group_xx[g], &self.group_xr[g]))
+                    .collect();
+                let k = columns.len();
+                parts.into_iter().fold(
+                    (DMatrix::zeros(k, k), DVector::zeros(k)),
+                    |(a, b), (ag, bg)| (a + ag, b + bg),
+                )
             }
         }
-        (a, b)
     }
 
     /// The scoring columns of fitted `columns` (see `Candidate::applied`).
@@ -143,6 +186,14 @@ pub(super) fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
         .solve(&rhs, tolerance)
         .unwrap_or_else(|_| DVector::zeros(k));
     DVector::from_fn(k, |i, _| x[i] / d[i])
+}
+
+/// Whether a shape's coefficients are its parameters.
+fn linear(shape: &Shape) -> bool {
+    matches!(
+        shape,
+        Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. }
+    )
 }
 
 /// Column coefficients and their Jacobian for concatenated parameters.
@@ -293,28 +344,21 @@ pub(super) fn descend(
     let objective = |coefficients: &DVector<f64>| {
         coefficients.dot(&(a * coefficients)) - 2.0 * coefficients.dot(b)
     };
-    let nonlinear = selected.iter().any(|&c| {
-        !matches!(
-            candidates[c].shape,
-            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. }
-        )
-    });
+    let nonlinear = selected.iter().any(|&c| !linear(&candidates[c].shape));
     let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
     let mut value = objective(&coef);
     let mut lambda = 1e-3;
     for _ in 0..200 {
-        let gradient = jacobian.transpose() * (b - a * &coef);
+        let excess = a * &coef - b;
+        let gradient = -(jacobian.transpose() * &excess);
         let hessian = jacobian.transpose() * a * &jacobian;
-        let damped = if nonlinear {
-            let mut h = hessian.clone();
-            for i in 0..h.nrows() {
-                h[(i, i)] *= 1.0 + lambda;
-            }
-            h
+        let step = if nonlinear {
+            newton_step(
+                candidates, selected, &theta, &excess, &hessian, &gradient, lambda,
+            )
         } else {
-            hessian
+            pseudo_solve(&hessian, &gradient)
         };
-        let step = pseudo_solve(&damped, &gradient);
         let trial = &theta + &step;
         let (trial_coef, trial_jacobian) = coefficients(candidates, selected, &trial);
         let trial_value = objective(&trial_coef);
@@ -341,6 +385,51 @@ pub(super) fn descend(
         }
     }
     (theta, coef, jacobian, value)
+}
+
+/// A damped Newton step: the Gauss-Newton Hessian plus the coefficients'
+/// curvature weighted by the residual's excess (A c - b), with Marquardt's
+/// damping; where that is not positive definite (far from a minimum), the
+/// damped Gauss-Newton step, which always descends.
+fn newton_step(
+    candidates: &[Candidate],
+    selected: &[usize],
+    theta: &DVector<f64>,
+    excess: &DVector<f64>,
+    gauss_newton: &DMatrix<f64>,
+    gradient: &DVector<f64>,
+    lambda: f64,
+) -> DVector<f64> {
+    let damping = DMatrix::from_diagonal(&(gauss_newton.diagonal() * lambda));
+    let exact = gauss_newton + curvature(candidates, selected, theta, excess) + &damping;
+    if let Some(cholesky) = exact.cholesky() {
+        return cholesky.solve(gradient);
+    }
+    pseudo_solve(&(gauss_newton + damping), gradient)
+}
+
+/// Block-diagonal sum of each coefficient's Hessian in theta weighted by
+/// `weights` (one per coefficient, [`columns_of`] order).
+fn curvature(
+    candidates: &[Candidate],
+    selected: &[usize],
+    theta: &DVector<f64>,
+    weights: &DVector<f64>,
+) -> DMatrix<f64> {
+    let mut total = DMatrix::zeros(theta.len(), theta.len());
+    let (mut row, mut col) = (0, 0);
+    for &c in selected {
+        let candidate = &candidates[c];
+        let w = width(candidate);
+        let n = candidate.columns.len();
+        let parameters: Vec<f64> = theta.rows(col, w).iter().copied().collect();
+        let weights: Vec<f64> = weights.rows(row, n).iter().copied().collect();
+        let block = candidate.shape.curvature(&parameters, &weights);
+        total.view_mut((col, col), (w, w)).copy_from(&block);
+        row += n;
+        col += w;
+    }
+    total
 }
 
 /// Leave-one-trajectory-out MSE per joint of the residual after the effects.

@@ -176,21 +176,17 @@ fn base_parameters(m: &Moments, candidates: &[Candidate], c: usize) -> Option<Ba
     let mut applied: Vec<usize> = m.applied[..offset].iter().map(|&a| moved(a)).collect();
     applied.extend(offset..offset + k);
     applied.extend(m.applied[offset + 10..].iter().map(|&a| moved(a)));
-    let reduced = Moments {
-        xx: m
-            .xx
-            .iter()
+    let reduced = Moments::from_parts(
+        m.xx.iter()
             .map(|g| g.iter().map(|xx| t.transpose() * xx * &t).collect())
             .collect(),
-        xr: m
-            .xr
-            .iter()
+        m.xr.iter()
             .map(|g| g.iter().map(|xr| t.transpose() * xr).collect())
             .collect(),
-        rr: m.rr.clone(),
-        rows: m.rows.clone(),
+        m.rr.clone(),
+        m.rows.clone(),
         applied,
-    };
+    );
     let mut free = candidates.to_vec();
     let columns = &candidates[c].columns;
     free[c].shape = Shape::Linear;
