@@ -523,3 +523,53 @@ mod tests {
         assert_eq!(physically_consistent(&[f64::NAN; 10]), None);
     }
 }
+
+#[cfg(test)]
+mod curvature_tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// d/dtheta_b of sum_k w_k d coefficient_k / d theta_a, by central
+    /// differences of the shape's own Jacobian.
+    fn differenced(shape: &Shape, theta: &[f64], weights: &[f64]) -> DMatrix<f64> {
+        let n = theta.len();
+        let pulled = |t: &[f64]| {
+            let (_, jacobian) = shape.map(t);
+            jacobian.transpose() * DVector::from_column_slice(weights)
+        };
+        DMatrix::from_fn(n, n, |a, b| {
+            let h = 1e-6 * theta[b].abs().max(1e-2);
+            let (mut up, mut down) = (theta.to_vec(), theta.to_vec());
+            up[b] += h;
+            down[b] -= h;
+            (pulled(&up)[a] - pulled(&down)[a]) / (2.0 * h)
+        })
+    }
+
+    fn close(exact: &DMatrix<f64>, differenced: &DMatrix<f64>) -> bool {
+        let scale = differenced.amax().max(1.0);
+        (exact - differenced).amax() <= 1e-6 * scale
+    }
+
+    proptest! {
+        #[test]
+        fn curvature_is_the_derivative_of_the_weighted_jacobian(
+            m in 0.1f64..5.0,
+            c in prop::array::uniform3(-0.5f64..0.5),
+            tilt in prop::array::uniform2(-2.0f64..2.0),
+            weights in prop::collection::vec(-3.0f64..3.0, 10),
+        ) {
+            let zero = [0.0; 10];
+            let body = Shape::Body { offset: zero, base_mass: m, base_moment: Vector3::zeros() };
+            let theta = [m, c[0], c[1], c[2]];
+            prop_assert!(close(&body.curvature(&theta, &weights), &differenced(&body, &theta, &weights)));
+            let moment = Shape::Moment { offset: zero, base_mass: m, base_moment: Vector3::zeros() };
+            let h = [m * c[0], m * c[1], m * c[2]];
+            prop_assert!(close(&moment.curvature(&h, &weights), &differenced(&moment, &h, &weights)));
+            let gravity = Vector3::new(0.0, 0.0, -9.81);
+            let tilted = Shape::Tilt { gravity, across: [Vector3::x(), Vector3::y()] };
+            let w3 = &weights[..3];
+            prop_assert!(close(&tilted.curvature(&tilt, w3), &differenced(&tilted, &tilt, w3)));
+        }
+    }
+}
