@@ -24,6 +24,7 @@ pub mod kernels;
 pub mod mlp;
 pub mod oracle;
 pub mod output;
+pub mod parallel;
 pub mod preprocess;
 pub mod ranges;
 pub mod report;

@@ -7,6 +7,7 @@ use super::alternatives::{Alternative, broadest, payload_over_link_error, runner
 use super::candidate::{Candidate, Shape, columns_of, width};
 use super::fit::{Moments, Scoring, cv_mse, fit, identifiability, pseudo_solve};
 use super::{COLLINEAR, Kind, Settings};
+use crate::parallel::map_in_order;
 
 /// Whether a body candidate's mass and COM are identifiable together
 /// (through the second moments too, with the inertia about the COM held):
@@ -140,31 +141,36 @@ pub(super) fn select(
     let mut refused: Vec<usize> = Vec::new();
     let mut notes = Vec::new();
     let mut alternatives = Vec::new();
-    let unidentifiable: Vec<usize> = (0..candidates.len())
-        .filter(|&c| {
-            fit(m, candidates, &[c], |_| true).is_none_or(|f| {
-                identifiability(&f.information, 0..width(&candidates[c])) < COLLINEAR
-            })
-        })
-        .collect();
+    let all: Vec<usize> = (0..candidates.len()).collect();
+    let unidentifiable: Vec<usize> = map_in_order(&all, |&c| {
+        fit(m, candidates, &[c], |_| true)
+            .is_none_or(|f| identifiability(&f.information, 0..width(&candidates[c])) < COLLINEAR)
+    })
+    .into_iter()
+    .zip(&all)
+    .filter_map(|(refused, &c)| refused.then_some(c))
+    .collect();
     let initial = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
     let mut current = initial.clone();
     loop {
-        let scored: Vec<(usize, Gain, Vec<f64>)> = (0..candidates.len())
+        let open: Vec<usize> = (0..candidates.len())
             .filter(|c| {
                 !selected.contains(c)
                     && !refused.contains(c)
                     && !unidentifiable.contains(c)
                     && admissible(candidates, *c, &selected)
             })
-            .map(|c| {
-                let mut trial = selected.clone();
-                trial.push(c);
-                let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-                (c, relative_gain(&current, &mse, &initial), mse)
-            })
-            .filter(|(_, gain, _)| gain.share.is_finite())
             .collect();
+        // Each candidate's cross-validation is independent of the others'.
+        let scored: Vec<(usize, Gain, Vec<f64>)> = map_in_order(&open, |&c| {
+            let mut trial = selected.clone();
+            trial.push(c);
+            let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
+            (c, relative_gain(&current, &mse, &initial), mse)
+        })
+        .into_iter()
+        .filter(|(_, gain, _)| gain.share.is_finite())
+        .collect();
         let best = scored
             .iter()
             .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
