@@ -16,6 +16,7 @@ mod hostile;
 mod hostile2;
 mod inertial;
 mod lumping;
+mod module_graph;
 mod pointwise;
 mod prismatic;
 mod readers_fuzz;

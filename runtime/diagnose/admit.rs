@@ -5,10 +5,16 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::Kind;
 use super::candidate::{Candidate, Shape, width};
-use super::fit::{Fit, Moments, fit_robust, robust_quantity};
-use super::select::{Gain, MASS_FACTOR};
+use super::fit::Fit;
+use super::gain::Gain;
+use super::kind::Kind;
+use super::moments::Moments;
+use super::uncertainty::{fit_robust, robust_quantity};
+
+/// A link's fitted mass beyond this factor of its modelled mass (either
+/// way) is not taken as an inertial error of that link.
+pub const MASS_FACTOR: f64 = 3.0;
 
 /// Whether fitted `values` can be the candidate's physical effect; if not,
 /// the note that says what the data show instead.

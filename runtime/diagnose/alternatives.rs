@@ -6,10 +6,13 @@
 //! runner-up.
 
 use super::admit::{physical, significant};
-use super::candidate::Candidate;
-use super::fit::{Moments, Scoring, cv_mse, fit};
-use super::select::{Gain, label, relative_gain};
-use super::{Kind, Settings};
+use super::candidate::{Candidate, label};
+use super::fit::fit;
+use super::gain::{Gain, relative_gain};
+use super::heldout::{Scoring, cv_mse};
+use super::kind::Kind;
+use super::moments::Moments;
+use super::settings::Settings;
 
 /// A runner-up whose held-out MSE is within this factor of the named
 /// effect's on every joint explains the data almost as well.
@@ -227,65 +230,7 @@ fn hint(a: Kind, b: Kind) -> &'static str {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::DVector;
-
     use super::*;
-    use crate::diagnose::candidate::Shape;
-    use crate::diagnose::data::Stacked;
-    use crate::diagnose::select::select;
-
-    fn candidate(kind: Kind, column: DVector<f64>) -> Candidate {
-        Candidate {
-            kind,
-            joint: Some(0),
-            link: None,
-            modelled: [0.0; 10],
-            names: vec!["value"],
-            columns: vec![column],
-            applied: None,
-            shape: Shape::Linear,
-            settings: Vec::new(),
-            searched: 1,
-        }
-    }
-
-    /// One joint over 4 segments, residual 0.5 sin(q) plus noise; the
-    /// candidates' columns are sin(q), sin(q) + a trace of cos(3q) and qd.
-    fn case(trace: f64) -> (Stacked, Vec<Candidate>) {
-        let noise =
-            |q: f64, qd: f64| 0.05 * ((q * 12.9898 + qd * 78.233).sin() * 43758.5453).fract();
-        let (data, q, qd) = super::super::search::sweep(|q, qd| 0.5 * q.sin() + noise(q, qd));
-        let candidates = vec![
-            candidate(Kind::TorqueOffset, q.map(f64::sin)),
-            candidate(
-                Kind::CoulombFriction,
-                q.map(|q| q.sin() + trace * (3.0 * q).cos()),
-            ),
-            candidate(Kind::ViscousFriction, qd),
-        ];
-        (data, candidates)
-    }
-
-    #[test]
-    fn a_runner_up_that_explains_the_same_structure_is_reported() {
-        let (data, candidates) = case(0.002);
-        let m = Moments::new(&data, &candidates);
-        let selection = select(&m, 1, &candidates, Settings::default());
-        assert_eq!(selection.selected, vec![0]);
-        let alternative = selection.alternatives.as_slice();
-        assert_eq!(alternative.len(), 1, "{alternative:?}");
-        assert_eq!((alternative[0].named, alternative[0].runner_up), (0, 1));
-        assert!(note(&candidates, &alternative[0]).contains("coulomb_friction on joint 1"));
-    }
-
-    #[test]
-    fn a_runner_up_the_data_tell_apart_is_not() {
-        let (data, candidates) = case(0.5);
-        let m = Moments::new(&data, &candidates);
-        let selection = select(&m, 1, &candidates, Settings::default());
-        assert_eq!(selection.selected, vec![0]);
-        assert!(selection.alternatives.is_empty());
-    }
 
     /// Step 1 of a payload hidden with friction (independent simulator):
     /// a scale on joint 3 cuts that joint 94%, the payload 94% too and

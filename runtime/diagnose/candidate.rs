@@ -3,9 +3,9 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::Kind;
-use super::data::{Link, Stacked};
+use super::kind::Kind;
 use super::search;
+use super::stacked::{Link, Stacked};
 
 /// One candidate: a kind, a joint or link, its columns and how its named
 /// parameters map to coefficients of those columns.
@@ -282,6 +282,16 @@ pub(super) fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<us
 
 pub(super) fn width(candidate: &Candidate) -> usize {
     candidate.shape.width(candidate.columns.len())
+}
+
+/// How a candidate is named in notes.
+pub(super) fn label(candidate: &Candidate) -> String {
+    let kind = candidate.kind.name();
+    match (&candidate.joint, &candidate.link) {
+        (Some(j), _) => format!("{kind} on joint {}", j + 1),
+        (None, Some((k, name))) => format!("{kind} of link {} (`{name}`)", k + 1),
+        (None, None) => kind,
+    }
 }
 
 /// The fitted columns of the stacked data, filtered like the residual.

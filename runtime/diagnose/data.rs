@@ -4,6 +4,8 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Columns, Shape, candidates};
 use super::search::stribeck_velocities;
+use super::settings::Settings;
+use super::stacked::{Link, Stacked};
 use crate::dynamics::{Dynamics, model_torques};
 use crate::oracle::{self, Model, coulomb_sign};
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
@@ -11,30 +13,6 @@ use crate::trajectory::Trajectory;
 
 /// Shortest cross-validation segment, s.
 const MIN_SEGMENT_SECONDS: f64 = 1.0;
-
-/// Stacked data: rows are (sample, joint) pairs, sample-major.
-pub(crate) struct Stacked {
-    pub(super) residual: DVector<f64>,
-    pub(super) measured: DVector<f64>,
-    pub(super) qd: DVector<f64>,
-    pub(super) qdd: DVector<f64>,
-    /// The model's gravity torque.
-    pub(super) gravity: DVector<f64>,
-    /// Own-joint features ([`GENERIC_FEATURES`]), filtered like the columns.
-    pub(super) generic: Vec<DVector<f64>>,
-    pub(super) group: Vec<usize>,
-    pub(super) dof: usize,
-    /// Per joint the lever its speeds are scaled by (1 revolute,
-    /// `dynamics::PRISMATIC_LEVER` prismatic): the Stribeck grid's.
-    pub(super) levers: Vec<f64>,
-}
-
-impl Stacked {
-    /// The rows of joint `joint` (rows are (sample, joint) pairs).
-    pub(super) fn rows_of(&self, joint: usize) -> impl Iterator<Item = usize> + Clone + '_ {
-        (joint..self.residual.len()).step_by(self.dof)
-    }
-}
 
 /// The same recording passed twice would leak into its own held-out fold.
 pub(super) fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<()> {
@@ -51,12 +29,6 @@ pub(super) fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<(
         }
     }
     Ok(())
-}
-
-/// A moving link of the model: its name and standard parameters.
-pub(crate) struct Link {
-    pub(super) name: String,
-    pub(super) parameters: [f64; 10],
 }
 
 pub(super) fn links(model: &dyn Dynamics) -> Vec<Link> {
@@ -216,7 +188,7 @@ pub(super) fn stack(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
     pipeline: &Pipeline,
-    settings: &super::Settings,
+    settings: &Settings,
 ) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
     let n = model.dof();
     let velocities = if settings.stribeck {

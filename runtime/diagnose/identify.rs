@@ -5,9 +5,9 @@
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::candidate::{Candidate, width};
-use super::fit::{Moments, fit, pseudo_solve};
-use super::select::label;
+use super::candidate::{Candidate, label, width};
+use super::fit::{fit, pseudo_solve};
+use super::moments::Moments;
 
 /// |correlation| of two parameter estimates above which they are reported
 /// as confounded.

@@ -83,104 +83,42 @@ mod alternatives;
 pub mod apply;
 mod candidate;
 pub mod data;
+mod diagnosis;
+mod digits;
 mod fit;
+mod gain;
+mod heldout;
 mod identify;
+mod kind;
+mod moments;
 pub mod plots;
 mod report;
 mod search;
 mod select;
+mod settings;
+mod stacked;
 mod text;
+mod uncertainty;
 mod unconstrained;
 mod unexplained;
-
-use serde::Serialize;
 
 use crate::dynamics::Dynamics;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
-use candidate::Shape;
+use candidate::{Candidate, Shape, label};
 pub use data::{Layout, segment_counts};
 use data::{reject_duplicates, stack};
-use fit::{Moments, cv_mse_per_joint};
+pub use diagnosis::{Diagnosis, Effect, Regimes, ResidualSamples};
+use heldout::{Scoring, cv_mse, cv_mse_per_joint};
 pub use identify::{Confounded, Identifiability};
+pub use kind::Kind;
+use moments::Moments;
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
 use select::{body_identifiable, mass_identifiable, select};
+pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
+use stacked::Stacked;
 pub use unconstrained::Unconstrained;
 pub use unexplained::{RegimeShare, Unexplained};
-
-/// The kinds of effect the diagnosis can name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Kind {
-    ViscousFriction,
-    CoulombFriction,
-    Armature,
-    TorqueOffset,
-    Payload,
-    /// A link's mass and centre of mass differ from the model (`link`,
-    /// corrected `mass` kg and `com` [x, y, z] m in the link frame, and the
-    /// model's `nominal_mass`, `nominal_com`).
-    InertialError,
-    /// The logged torque of a joint is a scaled copy of the applied one (a
-    /// torque-constant or gear-ratio error of the sensor): `scale`; a
-    /// property of the data, corrected with `--torque-scale J=S`.
-    TorqueScale,
-    /// The torque is logged `delay` s after the state it belongs to (all
-    /// joints); a property of the data, corrected with `--torque-delay S`.
-    TorqueDelay,
-    /// The base is tilted: gravity in the base frame is `gravity` (m/s^2),
-    /// `tilt_deg` away from the model's.
-    GravityDirection,
-    /// A joint spring (a gravity-balancing spring, a cable): `stiffness`
-    /// N m/rad about the `rest` angle, rad.
-    JointSpring,
-    /// Direction-dependent dry friction: `asymmetry` N m added while the
-    /// joint moves either way (levels coulomb +- asymmetry).
-    CoulombAsymmetry,
-    /// Stribeck friction: breakaway friction `excess` N m above the sliding
-    /// level, fading past the Stribeck `velocity` (rad/s, chosen on a grid).
-    StribeckFriction,
-    /// Torque ripple of the position (cogging, gear or sensor harmonics):
-    /// `sin` and `cos` amplitudes (N m) of the harmonic with `cycles`
-    /// periods per joint revolution (chosen from the data).
-    TorqueRipple,
-}
-
-impl Kind {
-    /// The kind as JSON names it (`viscous_friction`, ...).
-    pub fn name(self) -> String {
-        serde_json::to_value(self)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default()
-    }
-}
-
-/// A named missing effect with its fitted parameters.
-#[derive(Debug, Clone, Serialize)]
-pub struct Effect {
-    pub kind: Kind,
-    /// 1-based joint, or `None` for a payload or an inertial error.
-    pub joint: Option<usize>,
-    /// The link (its name in the description) of a payload or inertial error.
-    pub link: Option<String>,
-    pub parameters: serde_json::Map<String, serde_json::Value>,
-    pub ci95: serde_json::Map<String, serde_json::Value>,
-    /// Held-out MSE (N m^2) this effect removes from its joint (a link
-    /// effect: summed over the joints), counted in selection order.
-    pub heldout_mse_removed: f64,
-    /// That drop as a fraction of the joint's (a link effect: all joints')
-    /// held-out MSE before the diagnosis.
-    pub heldout_share: f64,
-    /// Other effects (as "kind on joint N" / "kind of link N (`name`)")
-    /// that explain the same structure almost as well on held-out data: the
-    /// data barely tell them from this one (a note says what would).
-    pub ambiguous_with: Vec<String>,
-    /// A payload's or link's ten inertial parameters fitted freely, when
-    /// that fit differs from the physical one (not realizable, or clearly
-    /// better on held-out data); `None` otherwise.
-    pub unconstrained: Option<Unconstrained>,
-}
 
 /// Each joint's kind as the description names it (revolute when the model's
 /// description cannot be read).
@@ -197,129 +135,13 @@ fn joint_kinds(model: &dyn Dynamics) -> Vec<String> {
     kinds.unwrap_or_else(|| vec!["revolute".to_string(); model.dof()])
 }
 
-/// The diagnosis report (`sdnn diagnose --format json`).
-#[derive(Debug, Clone, Serialize)]
-pub struct Diagnosis {
-    pub model: String,
-    /// The preprocessing the recordings went through.
-    pub preprocessing: Pipeline,
-    /// How they were cut into cross-validation segments.
-    pub layout: Layout,
-    /// Decimated samples diagnosed.
-    pub samples: usize,
-    /// Per joint "revolute" (torques in N m, angles in rad) or "prismatic"
-    /// (forces in N, positions in m).
-    pub joint_kinds: Vec<String>,
-    /// Residual RMS per joint (N m) and its share of the measured torque RMS.
-    pub residual_rms: Vec<f64>,
-    pub residual_share: Vec<f64>,
-    /// Correlation of each joint's residual with its velocity, its velocity
-    /// sign, its acceleration and a constant: where the residual concentrates.
-    pub regimes: Vec<Regimes>,
-    /// Held-out (leave-one-trajectory-out) torque MSE per joint, N m^2.
-    pub mse_before: Vec<f64>,
-    pub mse_after: Vec<f64>,
-    /// The same with Coulomb friction zero while a joint is at rest (its
-    /// speed below the velocity noise), as fitted: where a joint sticks, the
-    /// friction is static and the applied model's sign(qd) follows noise, so
-    /// this is what the effects explain physically.
-    pub mse_after_fitted: Vec<f64>,
-    pub effects: Vec<Effect>,
-    /// Structure left in the residual that no candidate explains.
-    pub unexplained: Vec<Unexplained>,
-    /// How well these data separate the named effects' parameters.
-    pub identifiability: Identifiability,
-    /// Structure the data supports but no physical effect explains, e.g. a
-    /// negative armature (the model's inertia about a joint is too high).
-    pub notes: Vec<String>,
-    /// Every sample's residual before and after the named effects (fitted
-    /// to all data), for plots; not part of the JSON report.
-    #[serde(skip)]
-    pub residuals: ResidualSamples,
-}
-
-/// Per sample and joint (row `sample * dof + joint`): the joint's velocity
-/// and acceleration and its residual with the nominal model and with the
-/// named effects added.
-#[derive(Debug, Clone, Default)]
-pub struct ResidualSamples {
-    pub dof: usize,
-    pub qd: Vec<f64>,
-    pub qdd: Vec<f64>,
-    pub before: Vec<f64>,
-    pub after: Vec<f64>,
-}
-
-/// Residual structure of one joint.
-#[derive(Debug, Clone, Serialize)]
-pub struct Regimes {
-    pub velocity: f64,
-    pub velocity_sign: f64,
-    pub acceleration: f64,
-    /// Correlation with the model's gravity torque of the joint (a
-    /// configuration-dependent error: mass, COM, payload).
-    pub gravity_load: f64,
-    pub mean: f64,
-}
-
-/// Selection settings.
-#[derive(Debug, Clone, Copy)]
-pub struct Settings {
-    /// Minimum relative drop of the cross-validated MSE to accept an effect.
-    pub min_gain: f64,
-    /// Minimum |t| statistic of every parameter of an accepted effect.
-    pub min_t: f64,
-    /// The arm's size (m): a payload's centre of mass must lie within it
-    /// (see [`reach`]); infinite accepts any.
-    pub reach: f64,
-    /// A COM component whose 95% confidence half-width exceeds this fraction
-    /// of the arm's size ([`reach`] of the model; 1 m when the model has no
-    /// description) gets a note that the data barely determine it.
-    pub com_resolution: f64,
-    /// Cross-validation segments per recording; `None` chooses them (see
-    /// [`data::segment_counts`]).
-    pub segments: Option<usize>,
-    /// Whether Stribeck friction competes (off by default: its signature,
-    /// confined to velocity reversals, is confounded with the stick-slip
-    /// of plain dry friction; docs/diagnosis.md).
-    pub stribeck: bool,
-}
-
-/// Shortest total duration diagnosed, s: two cross-validation segments of
-/// 2 s (shorter data cannot tell an effect from chance).
-pub const MIN_SECONDS: f64 = 4.0;
-
-/// Relative eigenvalue of a candidate's unit-diagonal information matrix
-/// below which its parameters are taken as not identifiable.
-pub const COLLINEAR: f64 = 1e-6;
-
-/// The arm's size: the summed joint offsets of the chain, base to tip.
-pub fn reach(model: &dyn Dynamics) -> f64 {
-    crate::dynamics::parsed_description(model).map_or(f64::INFINITY, |d| {
-        d.chain().bodies.iter().map(|b| b.translation.norm()).sum()
-    })
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            min_gain: 0.10,
-            min_t: 3.0,
-            reach: f64::INFINITY,
-            com_resolution: 0.05,
-            segments: None,
-            stribeck: false,
-        }
-    }
-}
-
 /// Drops, one at a time, a named effect that removes no held-out error
 /// from its joints once applied (the generated model's columns, counted in
 /// selection order): selection scores the fitted columns, and an effect at
 /// the noise floor can pass it yet make the applied model no better.
 fn drop_unhelpful(
     m: &Moments,
-    candidates: &[candidate::Candidate],
+    candidates: &[Candidate],
     selected: &mut Vec<usize>,
     notes: &mut Vec<String>,
 ) {
@@ -331,7 +153,7 @@ fn drop_unhelpful(
         notes.push(format!(
             "{}: significant in the fit, but once applied it removes no held-out error from its \
              joints; dropped",
-            select::label(&candidates[dropped])
+            label(&candidates[dropped])
         ));
     }
 }
@@ -344,8 +166,8 @@ fn drop_unhelpful(
 /// (named candidate, other candidate) and a note says how many samples
 /// could tell.
 fn offset_or_asymmetry(
-    data: &data::Stacked,
-    candidates: &[candidate::Candidate],
+    data: &Stacked,
+    candidates: &[Candidate],
     selected: &[usize],
     notes: &mut Vec<String>,
 ) -> Vec<(usize, usize)> {
@@ -406,7 +228,7 @@ fn offset_or_asymmetry(
 
 /// Fits the first moment alone (the mass held as modelled) for these body
 /// candidates.
-fn hold_mass(candidates: &mut [candidate::Candidate], which: &[usize]) {
+fn hold_mass(candidates: &mut [Candidate], which: &[usize]) {
     for &c in which {
         if let Shape::Body {
             offset,
@@ -502,13 +324,7 @@ pub fn diagnose(
     let dry_pairs = offset_or_asymmetry(&data, &candidates, &selected, &mut notes);
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
-    let mse_after_fitted = fit::cv_mse(
-        &moments,
-        data.dof,
-        &candidates,
-        &selected,
-        fit::Scoring::Fitted,
-    );
+    let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
     let mut effects = describe(
         &moments,
         &candidates,
@@ -527,10 +343,7 @@ pub fn diagnose(
                 beside.push(r);
             }
         }
-        effect.ambiguous_with = beside
-            .iter()
-            .map(|&r| select::label(&candidates[r]))
-            .collect();
+        effect.ambiguous_with = beside.iter().map(|&r| label(&candidates[r])).collect();
         effect.unconstrained = unconstrained::unconstrained(
             &moments,
             &candidates,
@@ -548,7 +361,7 @@ pub fn diagnose(
              and COM are fitted with the link's inertia about its COM held as modelled; if that \
              inertia is wrong too, so is the mass (the mass and COM estimates correlate strongly, \
              see identifiability)",
-            select::label(&candidates[c])
+            label(&candidates[c])
         ));
     }
     let residuals = residual_samples(&data, &moments, &candidates, &selected);

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::diagnose::{Diagnosis, ResidualSamples};
+use super::diagnosis::{Diagnosis, ResidualSamples};
 use crate::report::plot::{LinePlot, Series, Style, grid_plot};
 
 /// Writes `residual_vs_velocity.svg` and `residual_vs_acceleration.svg` into

@@ -3,11 +3,14 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::candidate::{Candidate, Shape, physically_consistent, width};
-use super::data::Stacked;
-use super::fit::{Moments, cv_mse_per_joint, fit, fit_robust};
-use super::select::label;
-use super::{Effect, Kind, Regimes, ResidualSamples};
+use super::candidate::{Candidate, Shape, label, physically_consistent, width};
+use super::diagnosis::{Effect, Regimes, ResidualSamples};
+use super::fit::fit;
+use super::heldout::cv_mse_per_joint;
+use super::kind::Kind;
+use super::moments::Moments;
+use super::stacked::Stacked;
+use super::uncertainty::fit_robust;
 
 /// The residuals before and after subtracting what the selected effects,
 /// fitted to all data, add to the model (as the applied model computes it).

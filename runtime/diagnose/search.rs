@@ -7,7 +7,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::data::Stacked;
+use super::stacked::Stacked;
 
 /// Stribeck velocities tried, rad/s: ratio 1.4 from 0.01 to 0.79, so the
 /// chosen one is within 18% of any velocity in that range. Below 0.01 rad/s

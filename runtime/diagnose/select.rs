@@ -2,11 +2,15 @@
 //! checks and [`super::admit`]'s significance and physical-sign checks, and
 //! a backward prune.
 
-use super::admit::{physical, searched_threshold, significant};
+use super::admit::{MASS_FACTOR, physical, searched_threshold, significant};
 use super::alternatives::{Alternative, broadest, payload_over_link_error, runners_up};
-use super::candidate::{Candidate, Shape, columns_of, width};
-use super::fit::{Moments, Scoring, cv_mse, fit, identifiability, pseudo_solve};
-use super::{COLLINEAR, Kind, Settings};
+use super::candidate::{Candidate, Shape, columns_of, label, width};
+use super::fit::{fit, identifiability, pseudo_solve};
+use super::gain::{Gain, relative_gain};
+use super::heldout::{Scoring, cv_mse};
+use super::kind::Kind;
+use super::moments::Moments;
+use super::settings::{COLLINEAR, Settings};
 use crate::parallel::map_in_order;
 
 /// Whether a body candidate's mass and COM are identifiable together
@@ -65,64 +69,6 @@ pub(super) fn mass_identifiable(
     let coupling = a.view((1, 0), (3, 1)).column(0).into_owned();
     let schur = a[(0, 0)] - coupling.dot(&pseudo_solve(&h, &coupling));
     schur >= COLLINEAR * largest
-}
-
-/// Largest relative drop of any joint's MSE from `before` to `after`.
-pub(super) fn relative_gain(before: &[f64], after: &[f64], initial: &[f64]) -> Gain {
-    before
-        .iter()
-        .zip(after)
-        .zip(initial)
-        .enumerate()
-        .map(|(joint, ((b, a), i))| {
-            // A drop below GAIN_FLOOR of the joint's error before the
-            // diagnosis is noise-level structure, however large a share of
-            // what is left it is.
-            let share = if *b > 0.0 && b - a >= GAIN_FLOOR * i {
-                (b - a) / b
-            } else {
-                0.0
-            };
-            Gain { share, joint }
-        })
-        .fold(
-            Gain {
-                share: f64::NEG_INFINITY,
-                joint: 0,
-            },
-            |best, g| {
-                if g.share > best.share { g } else { best }
-            },
-        )
-}
-
-/// The least held-out MSE an effect must remove from a joint, as a share of
-/// that joint's held-out MSE before the diagnosis.
-pub const GAIN_FLOOR: f64 = 1e-3;
-
-/// A candidate's held-out gain: the largest share of a joint's current
-/// held-out MSE it removes, and that joint.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Gain {
-    pub(super) share: f64,
-    pub(super) joint: usize,
-}
-
-impl Gain {
-    /// No gain (the backward check asks only whether a fit is physical).
-    pub(super) const NONE: Gain = Gain {
-        share: 0.0,
-        joint: 0,
-    };
-
-    /// "would cut joint 2's held-out MSE by 76%".
-    pub(super) fn would_cut(&self) -> String {
-        format!(
-            "would cut joint {}'s held-out MSE by {:.0}%",
-            self.joint + 1,
-            100.0 * self.share
-        )
-    }
 }
 
 /// Forward selection by cross-validated MSE with a significance check: each
@@ -315,10 +261,6 @@ pub(super) fn prune(
     }
 }
 
-/// A link's fitted mass beyond this factor of its modelled mass (either
-/// way) is not taken as an inertial error of that link.
-pub const MASS_FACTOR: f64 = 3.0;
-
 /// Whether a candidate may compete given the effects already named: an
 /// asymmetry of dry friction only on a joint that has Coulomb friction.
 fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
@@ -332,12 +274,64 @@ fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
         })
 }
 
-/// How a candidate is named in notes.
-pub(super) fn label(candidate: &Candidate) -> String {
-    let kind = candidate.kind.name();
-    match (&candidate.joint, &candidate.link) {
-        (Some(j), _) => format!("{kind} on joint {}", j + 1),
-        (None, Some((k, name))) => format!("{kind} of link {} (`{name}`)", k + 1),
-        (None, None) => kind,
+#[cfg(test)]
+mod tests {
+    use nalgebra::DVector;
+
+    use super::*;
+    use crate::diagnose::alternatives::note;
+    use crate::diagnose::stacked::Stacked;
+
+    fn candidate(kind: Kind, column: DVector<f64>) -> Candidate {
+        Candidate {
+            kind,
+            joint: Some(0),
+            link: None,
+            modelled: [0.0; 10],
+            names: vec!["value"],
+            columns: vec![column],
+            applied: None,
+            shape: Shape::Linear,
+            settings: Vec::new(),
+            searched: 1,
+        }
+    }
+
+    /// One joint over 4 segments, residual 0.5 sin(q) plus noise; the
+    /// candidates' columns are sin(q), sin(q) + a trace of cos(3q) and qd.
+    fn case(trace: f64) -> (Stacked, Vec<Candidate>) {
+        let noise =
+            |q: f64, qd: f64| 0.05 * ((q * 12.9898 + qd * 78.233).sin() * 43758.5453).fract();
+        let (data, q, qd) = crate::diagnose::search::sweep(|q, qd| 0.5 * q.sin() + noise(q, qd));
+        let candidates = vec![
+            candidate(Kind::TorqueOffset, q.map(f64::sin)),
+            candidate(
+                Kind::CoulombFriction,
+                q.map(|q| q.sin() + trace * (3.0 * q).cos()),
+            ),
+            candidate(Kind::ViscousFriction, qd),
+        ];
+        (data, candidates)
+    }
+
+    #[test]
+    fn a_runner_up_that_explains_the_same_structure_is_reported() {
+        let (data, candidates) = case(0.002);
+        let m = Moments::new(&data, &candidates);
+        let selection = select(&m, 1, &candidates, Settings::default());
+        assert_eq!(selection.selected, vec![0]);
+        let alternative = selection.alternatives.as_slice();
+        assert_eq!(alternative.len(), 1, "{alternative:?}");
+        assert_eq!((alternative[0].named, alternative[0].runner_up), (0, 1));
+        assert!(note(&candidates, &alternative[0]).contains("coulomb_friction on joint 1"));
+    }
+
+    #[test]
+    fn a_runner_up_the_data_tell_apart_is_not() {
+        let (data, candidates) = case(0.5);
+        let m = Moments::new(&data, &candidates);
+        let selection = select(&m, 1, &candidates, Settings::default());
+        assert_eq!(selection.selected, vec![0]);
+        assert!(selection.alternatives.is_empty());
     }
 }

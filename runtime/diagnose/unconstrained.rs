@@ -10,10 +10,13 @@ use serde::Serialize;
 
 use nalgebra::DMatrix;
 
-use super::candidate::{Candidate, Shape, physically_consistent, pseudo_inertia_margin, width};
-use super::fit::{Moments, cv_mse_per_joint, fit};
-use super::select::label;
-use super::{COLLINEAR, Settings};
+use super::candidate::{
+    Candidate, Shape, label, physically_consistent, pseudo_inertia_margin, width,
+};
+use super::fit::fit;
+use super::heldout::cv_mse_per_joint;
+use super::moments::Moments;
+use super::settings::{COLLINEAR, Settings};
 
 /// Column norm, relative to the largest of the link's, below which a column
 /// is rounding.

@@ -14,8 +14,10 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::data::{GENERIC_FEATURES, Stacked};
+use super::data::GENERIC_FEATURES;
+use super::digits::sig;
 use super::fit::pseudo_solve;
+use super::stacked::Stacked;
 
 /// Share of a joint's remaining residual power that generic features must
 /// predict held out before the joint is reported as unexplained.
@@ -101,7 +103,7 @@ pub(super) fn unexplained(
                 (Some(share), Some((bandwidth, _))) => format!(
                     "; {:.0}% of its power varies as slowly as the motion (below {} Hz), the rest faster",
                     100.0 * share,
-                    super::text::sig(bandwidth)
+                    sig(bandwidth)
                 ),
                 _ => String::new(),
             };
@@ -115,7 +117,7 @@ pub(super) fn unexplained(
                  model and the candidates lack (see the README's list), or a wrong inertial parameter",
                 j + 1,
                 100.0 * predictable,
-                super::text::sig(mse.sqrt()),
+                sig(mse.sqrt()),
                 if by_regime.is_empty() {
                     "no single regime (a combination)".to_string()
                 } else {

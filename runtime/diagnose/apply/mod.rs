@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use toml_edit::{Array, ArrayOfTables, DocumentMut, InlineTable, Item, Table, Value};
 
-use crate::diagnose::{Diagnosis, Kind};
+use super::diagnosis::Diagnosis;
+use super::kind::Kind;
 
 /// Radius of the sphere whose inertia a payload gets (a point mass would have
 /// none, which the description rejects as not positive definite).

@@ -1,0 +1,155 @@
+//! Second moments of the candidate columns and the residual per
+//! cross-validation group and joint: every fit below is a small solve on
+//! them, independent of the number of samples.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::candidate::Candidate;
+use super::stacked::Stacked;
+
+/// Second moments of all candidate columns and the residual, per
+/// trajectory and joint: every least-squares fit and cross-validation fold
+/// is then a small solve, independent of the number of samples.
+pub(super) struct Moments {
+    /// `[group][joint]`: X^T X, X^T r, r^T r and the row count.
+    pub(super) xx: Vec<Vec<DMatrix<f64>>>,
+    pub(super) xr: Vec<Vec<DVector<f64>>>,
+    pub(super) rr: Vec<Vec<f64>>,
+    pub(super) rows: Vec<Vec<usize>>,
+    /// For each candidate column, the moment column that scores it (itself,
+    /// or its `applied` column stored after all candidate columns).
+    pub(super) applied: Vec<usize>,
+    /// X^T X and X^T r per group summed over the joints, and over
+    /// everything: a fold's normal equations are the total less one group,
+    /// not a sum over every other group and joint.
+    group_xx: Vec<DMatrix<f64>>,
+    group_xr: Vec<DVector<f64>>,
+    total_xx: DMatrix<f64>,
+    total_xr: DVector<f64>,
+}
+
+impl Moments {
+    pub(super) fn new(data: &Stacked, candidates: &[Candidate]) -> Moments {
+        let mut columns: Vec<&DVector<f64>> =
+            candidates.iter().flat_map(|c| c.columns.iter()).collect();
+        let mut applied: Vec<usize> = (0..columns.len()).collect();
+        let mut at = 0;
+        for c in candidates {
+            if let Some(column) = &c.applied {
+                applied[at] = columns.len();
+                columns.push(column);
+            }
+            at += c.columns.len();
+        }
+        let p = columns.len();
+        let groups = data.group.iter().max().map_or(0, |g| g + 1);
+        let mut xx = vec![vec![DMatrix::zeros(p, p); data.dof]; groups];
+        let mut xr = vec![vec![DVector::zeros(p); data.dof]; groups];
+        let mut rr = vec![vec![0.0; data.dof]; groups];
+        let mut rows = vec![vec![0; data.dof]; groups];
+        for (r, (&g, &y)) in data.group.iter().zip(data.residual.iter()).enumerate() {
+            let j = r % data.dof;
+            let x = DVector::from_fn(p, |k, _| columns[k][r]);
+            xx[g][j].ger(1.0, &x, &x, 1.0);
+            xr[g][j].axpy(y, &x, 1.0);
+            rr[g][j] += y * y;
+            rows[g][j] += 1;
+        }
+        Moments::from_parts(xx, xr, rr, rows, applied)
+    }
+
+    /// Moments from their per-group, per-joint parts, with the sums over
+    /// joints and groups that the normal equations use.
+    pub(super) fn from_parts(
+        xx: Vec<Vec<DMatrix<f64>>>,
+        xr: Vec<Vec<DVector<f64>>>,
+        rr: Vec<Vec<f64>>,
+        rows: Vec<Vec<usize>>,
+        applied: Vec<usize>,
+    ) -> Moments {
+        let p = xx.first().and_then(|g| g.first()).map_or(0, DMatrix::nrows);
+        let sum_m = |parts: &[DMatrix<f64>]| parts.iter().fold(DMatrix::zeros(p, p), |a, x| a + x);
+        let sum_v = |parts: &[DVector<f64>]| parts.iter().fold(DVector::zeros(p), |a, x| a + x);
+        let group_xx: Vec<DMatrix<f64>> = xx.iter().map(|g| sum_m(g)).collect();
+        let group_xr: Vec<DVector<f64>> = xr.iter().map(|g| sum_v(g)).collect();
+        Moments {
+            total_xx: sum_m(&group_xx),
+            total_xr: sum_v(&group_xr),
+            group_xx,
+            group_xr,
+            xx,
+            xr,
+            rr,
+            rows,
+            applied,
+        }
+    }
+
+    /// Sums of X^T X and X^T r over the groups `keep` accepts, restricted to `columns`.
+    pub(super) fn normal_equations(
+        &self,
+        columns: &[usize],
+        keep: impl Fn(usize) -> bool,
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let gather = |xx: &DMatrix<f64>, xr: &DVector<f64>| {
+            let k = columns.len();
+            let a = DMatrix::from_fn(k, k, |r, c| xx[(columns[r], columns[c])]);
+            (a, DVector::from_fn(k, |r, _| xr[columns[r]]))
+        };
+        let left_out: Vec<usize> = (0..self.group_xx.len()).filter(|&g| !keep(g)).collect();
+        match left_out[..] {
+            [] => gather(&self.total_xx, &self.total_xr),
+            // A cross-validation fold: everything but one group.
+            [g] => {
+                let (a, b) = gather(&self.total_xx, &self.total_xr);
+                let (ag, bg) = gather(&self.group_xx[g], &self.group_xr[g]);
+                (a - ag, b - bg)
+            }
+            _ => {
+                let kept = (0..self.group_xx.len()).filter(|&g| keep(g));
+                let parts: Vec<_> = kept
+                    .map(|g| gather(&self.group_xx[g], &self.group_xr[g]))
+                    .collect();
+                let k = columns.len();
+                parts.into_iter().fold(
+                    (DMatrix::zeros(k, k), DVector::zeros(k)),
+                    |(a, b), (ag, bg)| (a + ag, b + bg),
+                )
+            }
+        }
+    }
+
+    /// The scoring columns of fitted `columns` (see `Candidate::applied`).
+    pub(super) fn applied(&self, columns: &[usize]) -> Vec<usize> {
+        columns.iter().map(|&c| self.applied[c]).collect()
+    }
+
+    /// Residual sum of squares of group g, joint j after subtracting X theta.
+    pub(super) fn sse(&self, g: usize, j: usize, columns: &[usize], theta: &DVector<f64>) -> f64 {
+        // Gathered directly: selecting rows first copies whole rows of the
+        // moment matrix (hundreds of columns for a 7-joint arm).
+        let (xx, xr) = (&self.xx[g][j], &self.xr[g][j]);
+        let a = DMatrix::from_fn(columns.len(), columns.len(), |r, c| {
+            xx[(columns[r], columns[c])]
+        });
+        let b = DVector::from_fn(columns.len(), |r, _| xr[columns[r]]);
+        // Clamped: rounding can push a near-perfect fit's sum below zero.
+        (self.rr[g][j] - 2.0 * theta.dot(&b) + theta.dot(&(a * theta))).max(0.0)
+    }
+}
+
+/// Residual SSE per joint over all samples with `columns` fitted as `coefficients`.
+pub(super) fn sse_per_joint(
+    m: &Moments,
+    columns: &[usize],
+    coefficients: &DVector<f64>,
+) -> Vec<f64> {
+    let joints = m.xx.first().map_or(0, Vec::len);
+    (0..joints)
+        .map(|j| {
+            (0..m.xx.len())
+                .map(|g| m.sse(g, j, columns, coefficients))
+                .sum()
+        })
+        .collect()
+}
