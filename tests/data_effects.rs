@@ -112,3 +112,46 @@ fn a_scaled_and_late_torque_is_named_corrected_and_closes_the_gap() {
         );
     }
 }
+
+/// "As logged" means the torque in the file, with or without a correction:
+/// joint 2 logged 20% high and evaluated with `--torque-scale 2=1.2`, the
+/// corrected MSE equals the unscaled recording's, and the MSE against the
+/// torque as logged is 1.2^2 times it (the prediction scaled as the sensor
+/// scales), not the corrected torque's.
+#[test]
+fn the_torque_as_logged_is_the_logged_torque_under_a_scale_correction() {
+    let dir = Dir::new();
+    let recording = &raw_recordings(&oracle("kinova_gen3_lite_3dof_plant"), 1)[0];
+    let mut tau = recording.tau().clone();
+    tau.column_mut(1).scale_mut(1.2);
+    let (plain, scaled) = (dir.path().join("plain.csv"), dir.path().join("scaled.csv"));
+    write_csv(&plain, recording).unwrap();
+    write_csv(&scaled, &recording.with_tau(tau).unwrap()).unwrap();
+    let evaluate = |path: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["evaluate", "--model", NOMINAL, "--format", "json"];
+        args.extend(extra);
+        args.extend(["--data", path.to_str().unwrap()]);
+        let report = sdnn_json(&args);
+        let column = |name: &str| -> Vec<f64> {
+            let values = report[name].as_array().unwrap();
+            values.iter().map(|v| v.as_f64().unwrap()).collect()
+        };
+        (column("mse"), column("mse_torque_as_logged"))
+    };
+    let (mse, as_logged) = evaluate(&plain, &[]);
+    let (corrected, corrected_as_logged) = evaluate(&scaled, &["--torque-scale", "2=1.2"]);
+    for j in 0..3 {
+        let factor = if j == 1 { 1.44 } else { 1.0 };
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1e-12);
+        assert!(
+            close(corrected[j], mse[j]),
+            "joint {}: {corrected:?} {mse:?}",
+            j + 1
+        );
+        assert!(
+            close(corrected_as_logged[j], factor * as_logged[j]),
+            "joint {}: {corrected_as_logged:?} {as_logged:?}",
+            j + 1
+        );
+    }
+}

@@ -429,6 +429,15 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
             *sum += v * w / total;
         }
     }
+    // `--torque-scale J=S` divided joint J's torque by S when it was read:
+    // against the torque as logged the error is S times the corrected one
+    // (the prediction scaled as the sensor scales), so the as-logged MSE
+    // stays comparable with and without the correction.
+    for &(joint, scale) in &args.input.torque_scales {
+        if let Some(mse) = mse_as_logged.get_mut(joint - 1) {
+            *mse *= scale * scale;
+        }
+    }
     let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
     let name = args
         .nn
