@@ -28,6 +28,19 @@ fn to_full_device(args: &[&str]) -> Output {
         .expect("run sdnn")
 }
 
+/// Runs `sdnn` with standard error on `/dev/full`: its messages are lost.
+fn errors_to_full_device(args: &[&str]) -> Output {
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .expect("/dev/full");
+    Command::new(env!("CARGO_BIN_EXE_sdnn"))
+        .args(args)
+        .stderr(Stdio::from(full))
+        .output()
+        .expect("run sdnn")
+}
+
 /// Two 5 s recordings of the default virtual robot in `dir/rec`.
 fn recordings(dir: &Dir) -> [PathBuf; 2] {
     simulated_recordings(dir, 2, 5.0)
@@ -112,6 +125,58 @@ fn every_command_on_a_full_standard_output_exits_2() {
             "{args:?}: {stderr}"
         );
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+/// With standard error on a full device, commands that print notes there
+/// do their work and exit 0, and a refused command exits 2: the lost
+/// messages never make one panic (exit 101).
+#[test]
+fn a_full_standard_error_loses_messages_not_the_exit_code() {
+    let dir = Dir::new();
+    let [data, other] = recordings(&dir);
+    let (results, preprocessed) = (dir.path().join("results"), dir.path().join("pre"));
+    let worked: [&[&str]; 3] = [
+        &["preprocess", s(&data), "--out", s(&preprocessed)],
+        &[
+            "train",
+            s(&data),
+            s(&other),
+            "--out",
+            "-",
+            "--epochs",
+            "1",
+            "--hidden",
+            "4",
+        ],
+        &[
+            "reproduce",
+            "--trajectories",
+            "3",
+            "--train",
+            "2",
+            "--duration",
+            "2",
+            "--seeds",
+            "1",
+            "--epochs",
+            "1",
+            "--out",
+            s(&results),
+        ],
+    ];
+    for args in worked {
+        let run = errors_to_full_device(args);
+        assert_eq!(run.status.code(), Some(0), "{args:?}");
+    }
+    assert!(results.join("results.md").exists());
+    let refused: [&[&str]; 2] = [
+        &["evaluate", "--model", "no_such_model", "--data", s(&data)],
+        &["no-such-command"],
+    ];
+    for args in refused {
+        let run = errors_to_full_device(args);
+        assert_eq!(run.status.code(), Some(2), "{args:?}");
     }
 }
 

@@ -8,6 +8,7 @@ mod descriptions;
 mod diagnose;
 mod dynamics;
 mod excite;
+mod folders;
 mod freshness;
 mod generated_code;
 mod held_joints;
