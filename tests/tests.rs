@@ -20,6 +20,7 @@ mod lumping;
 mod pointwise;
 mod prismatic;
 mod readers_fuzz;
+mod refit;
 mod springs;
 mod stribeck;
 mod study;

@@ -85,6 +85,7 @@ mod candidate;
 pub mod data;
 mod fit;
 mod identify;
+mod modelled;
 pub mod plots;
 mod report;
 mod search;
@@ -180,6 +181,13 @@ pub struct Effect {
     /// that fit differs from the physical one (not realizable, or clearly
     /// better on held-out data); `None` otherwise.
     pub unconstrained: Option<Unconstrained>,
+    /// Where the model already has this effect on the joint: its values of
+    /// the parameters, which `parameters` corrects (they hold what is
+    /// missing), and `total`, the two together: what `--apply` writes.
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub modelled: serde_json::Map<String, serde_json::Value>,
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub total: serde_json::Map<String, serde_json::Value>,
 }
 
 /// Each joint's kind as the description names it (revolute when the model's
@@ -551,6 +559,7 @@ pub fn diagnose(
             select::label(&candidates[c])
         ));
     }
+    modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);
     Ok(Diagnosis {
