@@ -59,14 +59,14 @@ pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
     let imported =
         import_urdf(&text, &label, &options).with_context(|| format!("importing {label}"))?;
     for warning in &imported.warnings {
-        eprintln!("warning: {label}: {warning}");
+        crate::say!("warning: {label}: {warning}");
     }
     for note in &imported.notes {
-        eprintln!("note: {label}: {note}");
+        crate::say!("note: {label}: {note}");
     }
     emit(args.out.as_ref(), imported.toml.as_bytes())?;
     if let Some(out) = &args.out {
-        eprintln!(
+        crate::say!(
             "wrote {}; put it in models/ and run `cargo build` to generate its dynamics",
             out.display()
         );
@@ -109,7 +109,7 @@ pub fn import_log_command(args: &ImportLogArgs) -> Result<()> {
     write_contract_csv(&mut csv, &columns)?;
     emit(args.out.as_ref(), &csv)?;
     if let Some(out) = &args.out {
-        eprintln!(
+        crate::say!(
             "wrote {} ({} samples); timestamps are as logged: pass `--resample HZ` to \
              commands that read it if they are not uniform",
             out.display(),

@@ -179,7 +179,7 @@ impl InputArgs {
                         );
                     }
                     let hz = (1.0 / median_step).round().max(1.0);
-                    eprintln!(
+                    crate::say!(
                         "{}: time steps range from {:.3} to {:.3} ms: resampled to {hz} Hz, the \
                          median rate, by linear interpolation (--resample HZ chooses another)",
                         path.display(),
@@ -396,7 +396,7 @@ fn warn_slow_sampling(path: &Path, t: &[f64]) {
     let span = t.last().zip(t.first()).map_or(0.0, |(b, a)| b - a);
     let step = span / (t.len().max(2) - 1) as f64;
     if step >= 0.2 {
-        eprintln!(
+        crate::say!(
             "{}: samples are {step} s apart on average ({:.3} Hz); if the time column is in \
              milliseconds, divide it by 1000 (the contract is seconds)",
             path.display(),
@@ -426,7 +426,7 @@ fn check_plausible(path: &Path, traj: &Trajectory) -> Result<()> {
 /// model's by position because no name matched.
 fn note_bag_selection(path: &Path, states: &JointStates, model: Joints) {
     if states.ignored_messages > 0 {
-        eprintln!(
+        crate::say!(
             "{}: {} message(s) carrying none of the joints read ({}) were skipped (another \
              publisher on the topic)",
             path.display(),
@@ -438,7 +438,7 @@ fn note_bag_selection(path: &Path, states: &JointStates, model: Joints) {
         && states.order == JointOrder::FirstMessage
         && states.joints.len() == names.len()
     {
-        eprintln!(
+        crate::say!(
             "{}: no joint name of the bag ({}) is a model joint's ({}): read in the bag's order; \
              --joints NAME,... chooses the bag's joints in the model's order",
             path.display(),

@@ -13,7 +13,7 @@ fn main() -> ExitCode {
             if is_broken_pipe(&error) {
                 return ExitCode::SUCCESS;
             }
-            eprintln!("sdnn: {}", sdnn::errors::message(&error));
+            sdnn::say!("sdnn: {}", sdnn::errors::message(&error));
             ExitCode::from(2)
         }
     }

@@ -62,7 +62,7 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
     }
     if let Some(dir) = &args.plots {
         for path in crate::diagnose::plots::write(dir, &report)? {
-            eprintln!("wrote {}", path.display());
+            crate::say!("wrote {}", path.display());
         }
     }
     if args.apply && !report.effects.is_empty() {
@@ -109,15 +109,15 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
     let applied = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
     let backup = applied.backup;
     if applied.changes.is_empty() {
-        eprintln!(
+        crate::say!(
             "{}: unchanged (no effect of the robot was named)",
             toml.display()
         );
     } else {
-        eprintln!("changed in {}:", toml.display());
+        crate::say!("changed in {}:", toml.display());
     }
     for line in &applied.changes {
-        eprintln!("  {line}");
+        crate::say!("  {line}");
     }
     let data: Vec<String> = args
         .data
@@ -131,7 +131,7 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
     let options =
         args.input.command_line(&corrections) + &args.filter.command_line(args.input.angles);
     if corrections != args.input.corrections() {
-        eprintln!(
+        crate::say!(
             "the recordings need correcting too (properties of the data, not of the robot, so not \
              in the TOML):{}",
             Corrections::diagnosed(report).flags()
@@ -146,7 +146,7 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
             backup.display()
         )
     };
-    eprintln!(
+    crate::say!(
         "{done}:\n  sdnn evaluate --model {} --data {}{options}\n(`cargo build --release` makes \
          it the compiled model `{}` when the file is under models/)",
         shell_word(&toml.display().to_string()),

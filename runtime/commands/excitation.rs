@@ -124,21 +124,18 @@ pub fn excite(args: &ExciteArgs) -> Result<()> {
     crate::output::write(&md, text.as_bytes())
         .with_context(|| format!("writing {}", md.display()))?;
     report::plot(&design, &svg, model.name(), &levers)?;
-    match args.format {
-        Format::Json => println!(
-            "{}",
+    let printed = match args.format {
+        Format::Json => {
             serde_json::to_string_pretty(&report::json(&design, model.name(), &args.out))?
-        ),
-        Format::Text => {
-            println!("{text}");
-            println!(
-                "Written: {}, {}, {}",
-                args.out.display(),
-                md.display(),
-                svg.display()
-            );
         }
-    }
+        Format::Text => format!(
+            "{text}\nWritten: {}, {}, {}",
+            args.out.display(),
+            md.display(),
+            svg.display()
+        ),
+    };
+    crate::output::print_line(&printed)?;
     Ok(())
 }
 
@@ -202,7 +199,7 @@ fn weighted(model: &dyn Dynamics, path: &Path) -> Result<Vec<String>> {
         .collect();
     let names = excite::weights::from_diagnosis(&text, &path.display().to_string(), &links)?;
     if names.is_empty() {
-        eprintln!(
+        crate::say!(
             "{}: the diagnosis found nothing ambiguous or poorly determined; designing for all parameters alike",
             path.display()
         );

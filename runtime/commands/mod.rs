@@ -15,6 +15,7 @@ use crate::dynamics::Dynamics;
 use crate::dynamics::model_torques;
 use crate::inputs::{FilterArgs, InputArgs, load, load_one, load_preprocessed, shell_word};
 use crate::mlp::{Dataset, Mlp};
+use crate::output::StagedFolder;
 use crate::preprocess::Compared;
 use crate::ranges;
 use crate::study::{self, StudyConfig, mse_per_joint};
@@ -114,9 +115,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
     let what = format!("--count {} x --duration {}", args.count, args.duration);
     check_simulated_seconds(&what, total, plant.dof())?;
-    crate::output::create_folder(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    refuse_stale_recordings(&args.out, args.count)?;
+    let staged = begin_recordings(&args.out, args.count)?;
     let config = StudyConfig {
         duration: args.duration,
         ..StudyConfig::default()
@@ -132,17 +131,27 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     for k in 0..args.count {
         let seed = study::trajectory_seed(args.seed, k);
         let recording = study::record_trajectory(plant, nominal, &waypoints, seed)?;
-        let path = args.out.join(format!("trajectory_{:02}.csv", k + 1));
+        let path = staged.path().join(format!("trajectory_{:02}.csv", k + 1));
         write_csv(&path, &recording.measured)?;
         bar.inc(1);
     }
     bar.finish_and_clear();
+    reproduction::commit_folder(staged, &args.out)?;
     crate::output::print_line(&format!(
         "{} trajectories written to {}",
         args.count,
         args.out.display()
     ))?;
     Ok(())
+}
+
+/// Starts writing `count` recordings into the folder `out` whole (see
+/// `reproduction::begin_folder`): interrupted, the earlier recordings stay
+/// as they were. A folder holding more of them is refused.
+fn begin_recordings(out: &Path, count: usize) -> Result<StagedFolder> {
+    crate::output::create_folder(out).with_context(|| format!("creating {}", out.display()))?;
+    refuse_stale_recordings(out, count)?;
+    StagedFolder::begin(out, None).with_context(|| format!("creating {}", out.display()))
 }
 
 /// Refuses a folder holding recordings `trajectory_NN.csv` numbered
@@ -195,19 +204,19 @@ fn simulate_plan(args: &SimulateArgs, path: &Path) -> Result<()> {
             path.display()
         );
     }
-    crate::output::create_folder(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    let staged = begin_recordings(&args.out, 1)?;
     let reference = crate::sim::replay::Planned::new(&plan);
     let seed = study::trajectory_seed(args.seed, 0);
     let recording = study::record_reference(plant, nominal, &reference, seed, 1.0)
         .with_context(|| format!("recording {}", path.display()))?;
+    write_csv(staged.path().join("trajectory_01.csv"), &recording.measured)?;
+    reproduction::commit_folder(staged, &args.out)?;
     let out = args.out.join("trajectory_01.csv");
-    write_csv(&out, &recording.measured)?;
-    println!(
+    crate::output::print_line(&format!(
         "{} recorded on the virtual robot into {}",
         path.display(),
         out.display()
-    );
+    ))?;
     Ok(())
 }
 
@@ -230,7 +239,7 @@ pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     for_each_file(&args.data, |path| {
         let (processed, pipeline) = load_one(path, None, &args.input, &args.filter)?;
-        eprintln!("{}: {}", path.display(), pipeline.summary());
+        crate::say!("{}: {}", path.display(), pipeline.summary());
         write_csv(args.out.join(output_name(path)?), &processed)?;
         Ok(())
     })
@@ -309,7 +318,7 @@ pub fn train(args: &TrainArgs) -> Result<()> {
             .and_then(|all| crate::inputs::reject_repeated(&args.data, &all).map(|()| all))?
     } else {
         let (trajectories, pipeline) = load(&args.data, None, &args.input, &args.filter)?;
-        eprintln!("{}", pipeline.summary());
+        crate::say!("{}", pipeline.summary());
         trajectories
     };
     let mut parts = Vec::new();
@@ -357,7 +366,7 @@ pub fn train(args: &TrainArgs) -> Result<()> {
     };
     // With the network on standard output, the summary goes to stderr.
     if crate::output::is_stdout(&args.out) {
-        eprintln!("{text}");
+        crate::say!("{text}");
     } else {
         crate::output::print_line(&text)?;
     }
@@ -573,7 +582,7 @@ fn for_each_file(files: &[PathBuf], f: impl Fn(&Path) -> Result<()>) -> Result<(
     let mut failed = 0;
     for path in files {
         if let Err(e) = f(path) {
-            eprintln!("sdnn: {}", crate::errors::message(&e));
+            crate::say!("sdnn: {}", crate::errors::message(&e));
             failed += 1;
         }
     }

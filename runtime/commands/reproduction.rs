@@ -99,7 +99,7 @@ fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
     );
     let config = map_config(args)?;
     let out = &args.run.out;
-    crate::output::create_folder(out).with_context(|| format!("creating {}", out.display()))?;
+    let staged = begin_folder(out, "map")?;
     let bar = progress_bar();
     let report = |done: usize, total: usize, stage: &str| {
         bar.set_length(total as u64);
@@ -108,7 +108,8 @@ fn reproduce_map(args: &ReproduceArgs) -> Result<()> {
     };
     let cells = study::map::run_map(plant, exact, thesis, &config, &report)?;
     bar.finish_and_clear();
-    let markdown = crate::study::report::write_map(&cells, &config, out)?;
+    let markdown = crate::study::report::write_map(&cells, &config, staged.path())?;
+    commit_folder(staged, out)?;
     match args.run.format {
         Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&cells)?)?,
         Format::Text => {
@@ -239,23 +240,28 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
         controller,
         nominal,
     };
-    let out = &args.run.out;
-    run_study(out, args.run.format, |progress| {
-        study::run_models(models, &config, out, progress)
-    })
+    run_study(
+        &args.run.out,
+        "reproduce",
+        args.run.format,
+        |out, progress| study::run_models(models, &config, out, progress),
+    )
 }
 
-/// Runs a study behind a progress bar and prints its table.
+/// Runs a study behind a progress bar into a staged copy of `out` (see
+/// [`begin_folder`]) and prints its table.
 fn run_study(
     out: &Path,
+    kind: &'static str,
     format: Format,
-    study: impl FnOnce(study::Progress<'_>) -> Result<study::StudyResult>,
+    study: impl FnOnce(&Path, study::Progress<'_>) -> Result<study::StudyResult>,
 ) -> Result<()> {
+    let staged = begin_folder(out, kind)?;
     // Said at once: the first stage reports only when its first item is
     // done, and without a terminal the bar is hidden, so a run printed
     // nothing for its first minute. Each new stage gets a line when the
     // bar cannot show it.
-    eprintln!(
+    crate::say!(
         "study: recording, preprocessing and training; results go to {}",
         out.display()
     );
@@ -269,13 +275,14 @@ fn run_study(
         bar.set_message(stage.to_string());
         if let Ok(mut now) = stage_now.lock() {
             if *now != stage && bar.is_hidden() {
-                eprintln!("study: {stage} ({done}/{total})");
+                crate::say!("study: {stage} ({done}/{total})");
             }
             *now = stage.to_string();
         }
     };
-    let result = study(&report)?;
+    let result = study(staged.path(), &report)?;
     bar.finish_and_clear();
+    commit_folder(staged, out)?;
     match format {
         Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&result)?)?,
         Format::Text => {
@@ -285,6 +292,32 @@ fn run_study(
                 out.display()
             ))?;
         }
+    }
+    Ok(())
+}
+
+/// Starts writing the results folder `out` whole: its files go to a
+/// temporary folder inside it and move into place at the end, so an
+/// interrupted or failed run leaves the earlier results whole, never new
+/// recordings beside old networks and plots.
+pub(super) fn begin_folder(out: &Path, kind: &'static str) -> Result<StagedFolder> {
+    StagedFolder::begin(out, Some(kind)).with_context(|| format!("creating {}", out.display()))
+}
+
+/// Moves a run's files into `out` and says which files of the earlier run
+/// of the same kind it removed (those this run does not write again).
+pub(super) fn commit_folder(staged: StagedFolder, out: &Path) -> Result<()> {
+    let removed = staged
+        .commit()
+        .with_context(|| format!("writing the results into {}", out.display()))?;
+    if let Some(first) = removed.first() {
+        crate::say!(
+            "{}: removed {} file(s) of the earlier run that this one does not write ({}{})",
+            out.display(),
+            removed.len(),
+            first.display(),
+            if removed.len() > 1 { ", ..." } else { "" }
+        );
     }
     Ok(())
 }
@@ -328,8 +361,7 @@ pub fn study_command(args: &StudyArgs) -> Result<()> {
         test_from: args.test_from,
         train_pieces: args.train_pieces,
     };
-    let out = &args.run.out;
-    run_study(out, args.run.format, |progress| {
+    run_study(&args.run.out, "study", args.run.format, |out, progress| {
         study::run_on_measurements(nominal, &recordings, split, &config, out, progress)
     })
 }

@@ -318,6 +318,8 @@ pub(super) struct Columns {
     /// Per joint the speed below which it counts as at rest (the largest
     /// over the recordings), rad/s.
     pub(super) rest: Vec<f64>,
+    /// Per joint the cycles of the model's own ripple, if it has one.
+    pub(super) modelled_ripple: Vec<Option<f64>>,
 }
 
 /// Every candidate effect: per joint viscous, Coulomb and direction-dependent
@@ -344,6 +346,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         sample_period,
         stribeck,
         rest,
+        modelled_ripple,
     } = columns;
     let model_torque = &data.measured - &data.residual;
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
@@ -404,7 +407,16 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
                 ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])
             });
         }
-        if let Some((cycles, searched)) = search::ripple_cycles(data, j, &angle, &nuisance) {
+        let ripple = match modelled_ripple.get(j).copied().flatten() {
+            // A ripple the model has is refit at its harmonic (a correction
+            // of its amplitudes; a description holds one harmonic per
+            // joint). No search: the nuisance's model-torque column holds
+            // the modelled ripple, so the search could not see that
+            // harmonic, and an amplitude 4 times the model's went unnamed.
+            Some(cycles) => Some((cycles, 1)),
+            None => search::ripple_cycles(data, j, &angle, &nuisance),
+        };
+        if let Some((cycles, searched)) = ripple {
             list.push(Candidate {
                 names: vec!["sin", "cos"],
                 columns: vec![

@@ -312,6 +312,7 @@ pub(super) fn stack(
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
         stribeck: stribeck_pairs(all.stribeck),
         rest: at_rest,
+        modelled_ripple: super::modelled::ripple_cycles(&super::modelled::joint_effects(model)),
     };
     let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout))

@@ -34,6 +34,13 @@ pub struct Effect {
     /// that fit differs from the physical one (not realizable, or clearly
     /// better on held-out data); `None` otherwise.
     pub unconstrained: Option<Unconstrained>,
+    /// Where the model already has this effect on the joint: its values of
+    /// the parameters, which `parameters` corrects (they hold what is
+    /// missing), and `total`, the two together: what `--apply` writes.
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub modelled: serde_json::Map<String, serde_json::Value>,
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub total: serde_json::Map<String, serde_json::Value>,
 }
 
 /// The diagnosis report (`sdnn diagnose --format json`).

@@ -90,6 +90,7 @@ mod gain;
 mod heldout;
 mod identify;
 mod kind;
+mod modelled;
 mod moments;
 pub mod plots;
 mod report;
@@ -364,6 +365,7 @@ pub fn diagnose(
             label(&candidates[c])
         ));
     }
+    modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);
     Ok(Diagnosis {

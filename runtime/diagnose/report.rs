@@ -253,6 +253,8 @@ pub(super) fn effect(
         heldout_share: 0.0,
         ambiguous_with: Vec::new(),
         unconstrained: None,
+        modelled: Map::new(),
+        total: Map::new(),
     }
 }
 

@@ -125,6 +125,7 @@ impl Diagnosis {
             Some(j) => format!("joint {j}'s"),
             None => "the joints'".to_string(),
         };
+        let correction = self.correction_text(e);
         let ambiguous = if e.ambiguous_with.is_empty() {
             String::new()
         } else {
@@ -134,12 +135,41 @@ impl Diagnosis {
             )
         };
         format!(
-            "{} on {place}: {}; removes {:.0}% of {whose} held-out MSE ({} {}^2){ambiguous}",
+            "{} on {place}: {}{correction}; removes {:.0}% of {whose} held-out MSE ({} {}^2){ambiguous}",
             e.kind.name(),
             values.join(", "),
             100.0 * e.heldout_share,
             sig(e.heldout_mse_removed),
             e.joint.map_or("N m", |j| self.torque_unit(j))
+        )
+    }
+}
+
+impl Diagnosis {
+    /// For an effect the model already has on the joint: the values above
+    /// are what is missing, added to the model's (what `--apply` writes).
+    fn correction_text(&self, e: &Effect) -> String {
+        if e.total.is_empty() {
+            return String::new();
+        }
+        let list = |values: &serde_json::Map<String, serde_json::Value>| {
+            values
+                .iter()
+                .map(|(name, value)| {
+                    let revolute = unit(e.kind, name);
+                    let unit = match e.joint {
+                        Some(j) if self.sliding(j) => linear(revolute),
+                        _ => revolute,
+                    };
+                    format!("{name} {}{unit}", value_text(value))
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        format!(
+            "; adds to the model's {}: {} in all",
+            list(&e.modelled),
+            list(&e.total)
         )
     }
 }

@@ -268,8 +268,14 @@ fn branch_reports(
     for &b in &s.held {
         by_link.entry(tree.parent_link(b)).or_default().push(b);
     }
-    for (link, branches) in by_link {
-        let (mass, torque, joint) = statics::branches_load(tree, s, locks, gravity, &branches);
+    let groups: Vec<Vec<usize>> = by_link
+        .values()
+        .cloned()
+        .chain(s.dropped.iter().map(|&b| vec![b]))
+        .collect();
+    let loads = statics::branches_loads(tree, s, locks, gravity, &groups);
+    let (held, dropped) = loads.split_at(by_link.len());
+    for ((link, branches), load) in by_link.iter().zip(held) {
         let at: Vec<&str> = branches.iter().map(|&b| tree.joint_name(b)).collect();
         let held: Vec<usize> = branches
             .iter()
@@ -280,21 +286,22 @@ fn branch_reports(
             n => format!("{n} branches"),
         };
         messages.notes.push(format!(
-            "kept {count} at link '{}' ({}; {mass:.4} kg{}), joints held: {}",
-            tree.link_name(link),
+            "kept {count} at link '{}' ({}; {:.4} kg{}), joints held: {}",
+            tree.link_name(*link),
             names(&at),
-            load(tree, torque, joint),
+            load.mass,
+            lever(tree, load),
             holds(tree, s, &held)
         ));
     }
-    for &b in &s.dropped {
-        let (mass, torque, joint) = statics::branches_load(tree, s, locks, gravity, &[b]);
+    for (&b, load) in s.dropped.iter().zip(dropped) {
         messages.warnings.push(format!(
-            "dropped the branch below the {} joint '{}' ({mass:.4} kg{}): a free body is not part \
+            "dropped the branch below the {} joint '{}' ({:.4} kg{}): a free body is not part \
              of the arm",
             tree.kind(b).name(),
             tree.joint_name(b),
-            load(tree, torque, joint),
+            load.mass,
+            lever(tree, load),
         ));
     }
 }
@@ -328,10 +335,11 @@ fn names(list: &[&str]) -> String {
     }
 }
 
-fn load(tree: &Tree<'_>, torque: f64, joint: Option<usize>) -> String {
-    let Some(j) = joint else {
+fn lever(tree: &Tree<'_>, load: &statics::Load) -> String {
+    let Some(j) = load.joint else {
         return String::new();
     };
+    let torque = load.torque;
     let (unit, what) = match tree.kind(j) {
         parse::Kind::Prismatic => ("N", "force"),
         _ => ("N m", "torque"),

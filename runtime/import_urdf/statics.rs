@@ -18,8 +18,15 @@ use super::parse::Kind;
 use super::tree::Tree;
 
 /// Poses sampled within the limits, besides the zero pose: enough to find
-/// a branch's largest lever within a few percent, cheap on any URDF.
+/// a branch's largest lever within a few percent.
 const POSES: usize = 64;
+
+/// Most joint-and-branch pairs evaluated over all poses. A robot (a hand's
+/// twenty branches on a 7-joint arm) gets every pose; a URDF with
+/// thousands of branches on a chain of thousands of joints gets fewer, down
+/// to the zero pose alone, so the import stays quick on any URDF (a comb
+/// of 500 branches took 122 s with every pose for every branch).
+const MOST_PAIRS: usize = 2_000_000;
 
 /// A link's frame in the base frame.
 #[derive(Clone, Copy)]
@@ -36,45 +43,76 @@ struct Axis {
     origin: Vector3<f64>,
 }
 
-/// The mass of the subtrees below `branches` (joints hanging from one
-/// link) and the largest gravity torque (N m, or N on a prismatic joint)
-/// they put on a moving joint of the chain, with that joint.
-pub(super) fn branches_load(
+/// What a group of branches weighs on the chain.
+pub(super) struct Load {
+    /// Mass of the subtrees below the group's joints, kg.
+    pub mass: f64,
+    /// The largest gravity torque (N m, or N on a prismatic joint) they put
+    /// on a moving joint of the chain, and that joint.
+    pub torque: f64,
+    pub joint: Option<usize>,
+}
+
+/// The load of each group of `branches` (joints hanging from one link),
+/// over the same poses of the chain: each pose's kinematics computed once
+/// for all groups.
+pub(super) fn branches_loads(
     tree: &Tree<'_>,
     s: &Selection,
     locks: &Locks,
     gravity: Vector3<f64>,
-    branches: &[usize],
-) -> (f64, f64, Option<usize>) {
-    let Some(&branch) = branches.first() else {
-        return (0.0, 0.0, None);
-    };
-    let links: Vec<usize> = branches
+    groups: &[Vec<usize>],
+) -> Vec<Load> {
+    let links: Vec<Vec<usize>> = groups
         .iter()
-        .flat_map(|&b| tree.subtree_links(tree.child_link(b)))
+        .map(|g| {
+            g.iter()
+                .flat_map(|&b| tree.subtree_links(tree.child_link(b)))
+                .collect()
+        })
         .collect();
-    let mass: f64 = links.iter().map(|&l| link_mass(tree, l)).sum();
+    let mut loads: Vec<Load> = links
+        .iter()
+        .map(|l| Load {
+            mass: l.iter().map(|&l| link_mass(tree, l)).sum(),
+            torque: 0.0,
+            joint: None,
+        })
+        .collect();
+    let pairs: usize = groups
+        .iter()
+        .filter_map(|g| g.first())
+        .map(|&b| tree.joints_above(tree.child_link(b)).len())
+        .sum();
+    let poses = POSES.min(MOST_PAIRS / pairs.max(1));
     let mut rng = ChaCha8Rng::seed_from_u64(22);
-    let mut worst = (0.0, None);
-    for pose in 0..=POSES {
+    for pose in 0..=poses {
         let q = positions(tree, s, locks, (pose > 0).then_some(&mut rng));
         let (frames, axes) = forward(tree, s, &q);
-        let Some((m, c)) = centre(tree, &frames, &links) else {
-            continue;
-        };
-        let weight = m * gravity;
-        for a in axes.iter().filter(|a| above(tree, a.joint, branch)) {
-            let tau = if a.prismatic {
-                a.axis.dot(&weight)
-            } else {
-                a.axis.dot(&(c - a.origin).cross(&weight))
+        let mut axis_of = vec![None; tree.joint_count()];
+        for a in &axes {
+            axis_of[a.joint] = Some(a);
+        }
+        for ((group, links), load) in groups.iter().zip(&links).zip(&mut loads) {
+            let (Some(&branch), Some((m, c))) = (group.first(), centre(tree, &frames, links))
+            else {
+                continue;
             };
-            if tau.abs() > worst.0 {
-                worst = (tau.abs(), Some(a.joint));
+            let weight = m * gravity;
+            let above = tree.joints_above(tree.child_link(branch));
+            for a in above.iter().filter_map(|&j| axis_of[j]) {
+                let tau = if a.prismatic {
+                    a.axis.dot(&weight)
+                } else {
+                    a.axis.dot(&(c - a.origin).cross(&weight))
+                };
+                if tau.abs() > load.torque {
+                    (load.torque, load.joint) = (tau.abs(), Some(a.joint));
+                }
             }
         }
     }
-    (mass, worst.0, worst.1)
+    loads
 }
 
 fn link_mass(tree: &Tree<'_>, link: usize) -> f64 {
@@ -82,11 +120,6 @@ fn link_mass(tree: &Tree<'_>, link: usize) -> f64 {
         Ok(Some(i)) => i.mass,
         _ => 0.0,
     }
-}
-
-/// Whether `joint` lies above `branch` (moves it).
-fn above(tree: &Tree<'_>, joint: usize, branch: usize) -> bool {
-    tree.joints_above(tree.child_link(branch)).contains(&joint)
 }
 
 /// Every joint's position: moving ones sampled within their limits (0 when

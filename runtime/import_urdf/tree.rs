@@ -13,6 +13,9 @@ pub(super) struct Tree<'a> {
     parent_joint: Vec<Option<usize>>,
     /// Joints whose parent is this link, in file order, by link index.
     children: Vec<Vec<usize>>,
+    /// Each joint's parent and child link, by joint index (looked up once:
+    /// a lookup by name per call dominated imports of large trees).
+    links_of: Vec<(usize, usize)>,
     pub root: usize,
 }
 
@@ -45,6 +48,7 @@ impl<'a> Tree<'a> {
         let mut joint_index = HashMap::new();
         let mut parent_joint = vec![None; urdf.links.len()];
         let mut children = vec![Vec::new(); urdf.links.len()];
+        let mut links_of = Vec::with_capacity(urdf.joints.len());
         for (j, joint) in urdf.joints.iter().enumerate() {
             if joint_index.insert(joint.name.as_str(), j).is_some() {
                 return Err(structure(format!(
@@ -68,6 +72,7 @@ impl<'a> Tree<'a> {
                 )));
             }
             children[parent].push(j);
+            links_of.push((parent, child));
         }
         let root = single_root(urdf, &parent_joint)?;
         let tree = Tree {
@@ -76,6 +81,7 @@ impl<'a> Tree<'a> {
             joint_index,
             parent_joint,
             children,
+            links_of,
             root,
         };
         tree.check_connected()?;
@@ -119,6 +125,10 @@ impl<'a> Tree<'a> {
         self.urdf.joints[joint].kind
     }
 
+    pub fn joint_count(&self) -> usize {
+        self.urdf.joints.len()
+    }
+
     pub fn link_count(&self) -> usize {
         self.urdf.links.len()
     }
@@ -132,11 +142,11 @@ impl<'a> Tree<'a> {
     }
 
     pub fn child_link(&self, joint: usize) -> usize {
-        self.link_index[self.urdf.joints[joint].child.as_str()]
+        self.links_of[joint].1
     }
 
     pub fn parent_link(&self, joint: usize) -> usize {
-        self.link_index[self.urdf.joints[joint].parent.as_str()]
+        self.links_of[joint].0
     }
 
     /// The link named by a command-line option.

@@ -216,6 +216,11 @@ fn add_shaped(
     for &(k, amplitude) in amplitudes {
         add_joint_effect(doc, joint, k, amplitude)?;
     }
+    if value == existing {
+        // A correction of the effect the joint has: its shape line is
+        // left as written (`ripple_cycles = 6` stays an integer).
+        return Ok(());
+    }
     add_joint_effect(doc, joint, key, value - existing)
 }
 
@@ -255,14 +260,26 @@ fn add_joint_effect(doc: &mut DocumentMut, joint: &str, key: &str, delta: f64) -
     match effects {
         Item::Value(Value::InlineTable(t)) => match t.get_mut(key) {
             Some(old) => keep_decor(old, updated.into()),
-            None => {
-                t.insert(key, updated.into());
-            }
+            None => insert_last(t, key, updated.into()),
         },
         Item::Table(t) => set_keeping_decor(t, key, updated.into()),
         _ => bail!("`effects` of joint `{joint}` is not a table"),
     }
     Ok(())
+}
+
+/// Adds `key` at the end of an inline table; the space before its closing
+/// brace moves with the end (`{ a = 1 }` gets `{ a = 1, b = 2 }`, not
+/// `{ a = 1 , b = 2}`).
+fn insert_last(table: &mut InlineTable, key: &str, mut value: Value) {
+    if let Some((_, last)) = table.iter_mut().last() {
+        let suffix = last.decor().suffix().cloned();
+        if let Some(suffix) = suffix {
+            last.decor_mut().set_suffix("");
+            value.decor_mut().set_suffix(suffix);
+        }
+    }
+    table.insert(key, value);
 }
 
 /// Replaces `old` by `value` with `old`'s spaces and comments (a trailing

@@ -40,6 +40,8 @@ fn effect(kind: Kind, joint: Option<usize>, params: serde_json::Value) -> Effect
         heldout_share: 0.5,
         ambiguous_with: Vec::new(),
         unconstrained: None,
+        modelled: Default::default(),
+        total: Default::default(),
     }
 }
 
@@ -275,4 +277,22 @@ fn trailing_comments_on_changed_lines_are_kept() {
     let out = apply_to_text(&inline, &d, &["j1"], "a").unwrap();
     assert!(out.contains("} # measured on the bench"), "{out}");
     codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+}
+
+/// A correction of a ripple the joint has adds to its amplitudes, leaves
+/// its harmonic's line as written, and a new key goes before the space
+/// that closes the inline table.
+#[test]
+fn a_ripple_correction_adds_and_keeps_the_harmonic_as_written() {
+    let d = diagnosis(vec![effect(
+        Kind::TorqueRipple,
+        Some(1),
+        serde_json::json!({"sin": 0.25, "cos": 0.125, "cycles": 6.0}),
+    )]);
+    let source = SOURCE.replace("viscous = 0.1", "ripple_sin = 0.125, ripple_cycles = 6");
+    let out = apply_to_text(&source, &d, &["j1"], "a").unwrap();
+    assert!(
+        out.contains("effects = { ripple_sin = 0.375, ripple_cycles = 6, ripple_cos = 0.125 }"),
+        "{out}"
+    );
 }

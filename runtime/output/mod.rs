@@ -11,7 +11,8 @@
 //! they came from. `replace_input` is the one deliberate exception
 //! (`diagnose --apply` edits the TOML it read). A library user, who may
 //! well rewrite a file it read, is not restricted. The path `-` is standard
-//! output (a file named `-` is `./-`).
+//! output (a file named `-` is `./-`). A folder of outputs is written
+//! whole through [`StagedFolder`].
 
 use std::fs;
 use std::io::{self, BufWriter, Write};
@@ -19,9 +20,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+mod folder;
+
+pub use folder::StagedFolder;
+
 /// Canonical paths of the files this process has read.
 static INPUTS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
-/// Temporary files being written (not yet renamed over their target).
+/// Temporary files and staged folders being written (not yet in place).
 static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// Whether outputs over inputs are refused (the `sdnn` command).
 static PROTECT: AtomicBool = AtomicBool::new(false);
@@ -49,9 +54,20 @@ pub fn note_input(path: &Path) {
 /// `.sdnn-XXXX.tmp` is left beside the outputs. A finished write is
 /// complete and stays.
 pub fn remove_pending() {
+    // A staged folder's files moving into place finish first (see `folder`).
+    let _moving = folder::COMMIT.lock().unwrap_or_else(|e| e.into_inner());
     let pending = PENDING.lock().unwrap_or_else(|e| e.into_inner());
     for path in pending.iter() {
-        let _ = fs::remove_file(path);
+        if path.is_dir() {
+            // Other threads may still be writing into it: a few attempts.
+            for _ in 0..3 {
+                if fs::remove_dir_all(path).is_ok() || !path.exists() {
+                    break;
+                }
+            }
+        } else {
+            let _ = fs::remove_file(path);
+        }
     }
 }
 
@@ -91,6 +107,26 @@ pub fn print(text: &str) -> io::Result<()> {
 /// [`print`] with a line end.
 pub fn print_line(text: &str) -> io::Result<()> {
     print(&format!("{text}\n"))
+}
+
+/// Writes a line on standard error, ignoring a failed write: what the
+/// `say!` macro does for every progress note, warning and error message.
+/// Those lines are for a human; when standard error is closed or on a
+/// full device (`2>/dev/full`) they are lost, and the command still does
+/// its work and exits with its own code, where `eprintln!` would panic
+/// (exit 101).
+pub fn say_line(text: std::fmt::Arguments) {
+    let mut err = io::stderr().lock();
+    let _ = err.write_fmt(text).and_then(|()| err.write_all(b"\n"));
+}
+
+/// `eprintln!` that never panics: a line on standard error, a failed write
+/// ignored (see [`say_line`]).
+#[macro_export]
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::output::say_line(format_args!($($arg)*))
+    };
 }
 
 /// Creates the output folder `path` (and its parents). `-` is refused: a
@@ -220,9 +256,13 @@ fn replace(target: &Path, body: impl FnOnce(&mut dyn Write) -> io::Result<()>) -
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::os::unix::fs::FileTypeExt;
+
+    /// Tests that call `remove_pending` (which removes every pending file
+    /// of the process) or keep a folder pending run one at a time.
+    pub(crate) static SERIAL: Mutex<()> = Mutex::new(());
 
     #[test]
     fn writes_and_replaces_without_leftovers() {
@@ -236,6 +276,7 @@ mod tests {
 
     #[test]
     fn an_interrupt_removes_the_temporary_file_of_a_write_in_progress() {
+        let _serial = SERIAL.lock();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("out.txt");
         let temporaries = || {

@@ -1,0 +1,157 @@
+//! The joint effects the model already has. A named effect of a kind the
+//! model has on that joint is a correction of the model's value (the
+//! residual holds what is missing): the report gives the model's value and
+//! the total beside it, the total being what `--apply` writes.
+
+use codegen::JointEffects;
+use serde_json::{Map, Value, json};
+
+use super::{Effect, Kind};
+use crate::dynamics::Dynamics;
+
+/// The model's effects of each moving joint (none when its description
+/// cannot be read).
+pub(super) fn joint_effects(model: &dyn Dynamics) -> Vec<JointEffects> {
+    match crate::dynamics::parsed_description(model) {
+        Ok(d) => d.chain().free_bodies().map(|b| b.effects).collect(),
+        Err(_) => vec![JointEffects::default(); model.dof()],
+    }
+}
+
+/// Per joint the periods per revolution of the model's torque ripple,
+/// where it has one.
+pub(super) fn ripple_cycles(effects: &[JointEffects]) -> Vec<Option<f64>> {
+    effects
+        .iter()
+        .map(|e| {
+            let has = (e.ripple_sin != 0.0 || e.ripple_cos != 0.0) && e.ripple_cycles > 0.0;
+            has.then_some(e.ripple_cycles)
+        })
+        .collect()
+}
+
+/// The effect's parameters that add to the description's effect values:
+/// (parameter, effect key).
+fn additive(kind: Kind) -> &'static [(&'static str, &'static str)] {
+    match kind {
+        Kind::ViscousFriction => &[("coefficient", "viscous")],
+        Kind::CoulombFriction => &[("level", "coulomb")],
+        Kind::Armature => &[("inertia", "armature")],
+        Kind::TorqueOffset => &[("offset", "offset")],
+        Kind::CoulombAsymmetry => &[("asymmetry", "coulomb_asymmetry")],
+        Kind::StribeckFriction => &[("excess", "stribeck")],
+        Kind::TorqueRipple => &[("sin", "ripple_sin"), ("cos", "ripple_cos")],
+        Kind::JointSpring => &[("stiffness", "spring"), ("rest", "spring_rest")],
+        _ => &[],
+    }
+}
+
+/// The model's value of an effect key of a joint.
+fn value(e: &JointEffects, key: &str) -> f64 {
+    match key {
+        "viscous" => e.viscous,
+        "coulomb" => e.coulomb,
+        "armature" => e.armature,
+        "offset" => e.offset,
+        "coulomb_asymmetry" => e.coulomb_asymmetry,
+        "stribeck" => e.stribeck,
+        "ripple_sin" => e.ripple_sin,
+        "ripple_cos" => e.ripple_cos,
+        "spring" => e.spring,
+        "spring_rest" => e.spring_rest,
+        _ => 0.0,
+    }
+}
+
+/// Fills `modelled` and `total` of every named joint effect the model
+/// already has (some of its values not zero; a spring's rest alone is not
+/// a spring).
+pub(super) fn add_totals(effects: &mut [Effect], modelled: &[JointEffects]) {
+    for effect in effects {
+        let pairs = additive(effect.kind);
+        let Some(model) = effect.joint.and_then(|j| modelled.get(j - 1)) else {
+            continue;
+        };
+        let present = pairs
+            .iter()
+            .any(|&(_, key)| key != "spring_rest" && value(model, key) != 0.0);
+        if !present {
+            continue;
+        }
+        let fitted = |name: &str| effect.parameters.get(name).and_then(Value::as_f64);
+        let (mut was, mut total) = (Map::new(), Map::new());
+        for &(name, key) in pairs {
+            let Some(correction) = fitted(name) else {
+                continue;
+            };
+            let old = value(model, key);
+            let new = match key {
+                // Two springs are one of the summed stiffness about the
+                // stiffness-weighted mean of the rest angles.
+                "spring_rest" => {
+                    let (k0, k) = (model.spring, fitted("stiffness").unwrap_or(0.0));
+                    if k0 + k == 0.0 {
+                        correction
+                    } else {
+                        (k0 * old + k * correction) / (k0 + k)
+                    }
+                }
+                _ => old + correction,
+            };
+            was.insert(name.into(), json!(old));
+            total.insert(name.into(), json!(new));
+        }
+        (effect.modelled, effect.total) = (was, total);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn named(kind: Kind, parameters: &[(&str, f64)]) -> Effect {
+        Effect {
+            kind,
+            joint: Some(1),
+            link: None,
+            parameters: parameters
+                .iter()
+                .map(|&(k, v)| (k.to_string(), json!(v)))
+                .collect(),
+            ci95: Map::new(),
+            heldout_mse_removed: 0.0,
+            heldout_share: 0.0,
+            ambiguous_with: Vec::new(),
+            unconstrained: None,
+            modelled: Map::new(),
+            total: Map::new(),
+        }
+    }
+
+    #[test]
+    fn corrections_add_to_what_the_model_has() {
+        let model = JointEffects {
+            ripple_sin: 0.1,
+            ripple_cycles: 6.0,
+            spring: 1.0,
+            spring_rest: 0.2,
+            ..JointEffects::default()
+        };
+        let mut effects = [
+            named(
+                Kind::TorqueRipple,
+                &[("sin", 0.3), ("cos", 0.0), ("cycles", 6.0)],
+            ),
+            named(Kind::JointSpring, &[("stiffness", 3.0), ("rest", 0.6)]),
+            named(Kind::ViscousFriction, &[("coefficient", 0.2)]),
+        ];
+        add_totals(&mut effects, &[model]);
+        assert_eq!(effects[0].modelled["sin"], json!(0.1));
+        assert!((effects[0].total["sin"].as_f64().unwrap() - 0.4).abs() < 1e-12);
+        assert_eq!(effects[0].total["cos"], json!(0.0));
+        assert_eq!(effects[1].total["stiffness"], json!(4.0));
+        assert!((effects[1].total["rest"].as_f64().unwrap() - 0.5).abs() < 1e-12);
+        // Viscous friction the model lacks: a plain missing effect.
+        assert!(effects[2].modelled.is_empty() && effects[2].total.is_empty());
+    }
+}
