@@ -5,7 +5,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use super::candidate::{Candidate, Columns, Shape, candidates};
 use super::search::stribeck_velocities;
 use super::settings::Settings;
-use super::stacked::{Link, Stacked};
+use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
 use crate::dynamics::{Dynamics, model_torques};
 use crate::oracle::{self, Model, coulomb_sign};
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
@@ -165,17 +165,6 @@ impl Rows {
             stribeck: self.stribeck.iter().map(pick).collect(),
         }
     }
-}
-
-/// How recordings became the diagnosed rows (reported).
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct Layout {
-    /// Cross-validation groups: contiguous segments of the recordings.
-    pub segments: usize,
-    /// Seconds per segment (mean).
-    pub segment_seconds: f64,
-    /// Samples dropped at each end of a recording against filter transients.
-    pub trimmed_samples: usize,
 }
 
 /// Preprocesses every raw recording with `pipeline` at its own rate, builds
@@ -454,23 +443,6 @@ pub(super) fn tilt_directions(down: &Vector3<f64>) -> [Vector3<f64>; 2] {
     let first = (helper - down * down.dot(&helper)).normalize();
     [first, down.cross(&first)]
 }
-
-/// Features of the unexplained-structure check, by regime: what a
-/// residual that no candidate explains may still depend on.
-pub const GENERIC_FEATURES: [(&str, &str); 12] = [
-    ("velocity", "qd"),
-    ("velocity", "qd |qd|"),
-    ("velocity sign", "sign(qd)"),
-    ("velocity sign", "sign(qd) exp(-|qd| / 0.1 rad/s)"),
-    ("acceleration", "qdd"),
-    ("gravity load", "model gravity torque"),
-    ("position", "sin q"),
-    ("position", "cos q"),
-    ("position", "sin 2q"),
-    ("position", "cos 2q"),
-    ("constant", "1"),
-    ("torque rate", "d/dt model torque"),
-];
 
 fn generic_features(q: f64, qd: f64, sign: f64, qdd: f64, load: f64, rate: f64) -> [f64; 12] {
     [

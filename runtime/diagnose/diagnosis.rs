@@ -3,9 +3,9 @@
 
 use serde::Serialize;
 
-use super::data::Layout;
 use super::identify::Identifiability;
 use super::kind::Kind;
+use super::stacked::Layout;
 use super::unconstrained::Unconstrained;
 use super::unexplained::Unexplained;
 use crate::preprocess::Pipeline;

@@ -6,7 +6,8 @@
 use codegen::JointEffects;
 use serde_json::{Map, Value, json};
 
-use super::{Effect, Kind};
+use super::diagnosis::Effect;
+use super::kind::Kind;
 use crate::dynamics::Dynamics;
 
 /// The model's effects of each moving joint (none when its description

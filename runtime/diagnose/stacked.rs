@@ -33,3 +33,31 @@ pub(crate) struct Link {
     pub(super) name: String,
     pub(super) parameters: [f64; 10],
 }
+
+/// How recordings became the diagnosed rows (reported).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Layout {
+    /// Cross-validation groups: contiguous segments of the recordings.
+    pub segments: usize,
+    /// Seconds per segment (mean).
+    pub segment_seconds: f64,
+    /// Samples dropped at each end of a recording against filter transients.
+    pub trimmed_samples: usize,
+}
+
+/// Features of the unexplained-structure check, by regime: what a
+/// residual that no candidate explains may still depend on.
+pub const GENERIC_FEATURES: [(&str, &str); 12] = [
+    ("velocity", "qd"),
+    ("velocity", "qd |qd|"),
+    ("velocity sign", "sign(qd)"),
+    ("velocity sign", "sign(qd) exp(-|qd| / 0.1 rad/s)"),
+    ("acceleration", "qdd"),
+    ("gravity load", "model gravity torque"),
+    ("position", "sin q"),
+    ("position", "cos q"),
+    ("position", "sin 2q"),
+    ("position", "cos 2q"),
+    ("constant", "1"),
+    ("torque rate", "d/dt model torque"),
+];

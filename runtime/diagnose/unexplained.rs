@@ -14,10 +14,9 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::data::GENERIC_FEATURES;
 use super::digits::sig;
 use super::fit::pseudo_solve;
-use super::stacked::Stacked;
+use super::stacked::{GENERIC_FEATURES, Stacked};
 
 /// Share of a joint's remaining residual power that generic features must
 /// predict held out before the joint is reported as unexplained.
