@@ -20,6 +20,7 @@ mod module_graph;
 mod pointwise;
 mod prismatic;
 mod readers_fuzz;
+mod sanity_gate;
 mod springs;
 mod stribeck;
 mod study;

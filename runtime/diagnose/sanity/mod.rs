@@ -124,7 +124,7 @@ pub(super) fn torques(
     let hint = positions::beyond_a_turn(model, recordings).unwrap_or_default();
     let gains: Vec<scale::Gain> = (0..data.dof).map(|j| scale::gain(data, j)).collect();
     let exchanges = relabel::exchanges(data, candidates);
-    let swapped: Vec<&Exchange> = exchanges.iter().filter(|e| e.swapped()).collect();
+    let swapped = disjoint(exchanges.iter().filter(|e| e.swapped()).collect());
     let mut findings: Vec<Finding> = swapped.iter().map(|e| e.finding()).collect();
     // A joint in an exchanged pair fails the gain check because of it.
     let exchanged = |j: usize| swapped.iter().any(|e| e.joints.contains(&(j + 1)));
@@ -143,6 +143,23 @@ pub(super) fn torques(
             .min_by(|a, b| a.ratio.total_cmp(&b.ratio)),
         findings,
     }
+}
+
+/// The exchanges that share no joint, best first: with joints 2 and 4
+/// exchanged, exchanging 1 and 4 too can fit joint 4's equations better
+/// than the recorded order, but far worse than exchanging 2 and 4.
+fn disjoint(mut exchanges: Vec<&Exchange>) -> Vec<&Exchange> {
+    exchanges.sort_by(|a, b| a.ratio.total_cmp(&b.ratio));
+    let mut kept: Vec<&Exchange> = Vec::new();
+    for e in exchanges {
+        if !kept
+            .iter()
+            .any(|k| k.joints.iter().any(|j| e.joints.contains(j)))
+        {
+            kept.push(e);
+        }
+    }
+    kept
 }
 
 /// Refuses the recordings when a check failed.
