@@ -1,19 +1,20 @@
 //! The sanity gate: before any effect is named, checks that the recordings
-//! can be the model's robot as recorded. A torque logged with the other
-//! sign, angles logged in degrees or two joints' columns exchanged are not
-//! missing physics, and the diagnosis would "explain" them with confident
-//! wrong effects (a link three times too heavy, a torque scale of 2).
-//! When a check fails nothing is named and each finding says what to
-//! check ([`Refusal`]; `sdnn diagnose` exits 3).
+//! can be the model's robot as logged. A torque logged with the other sign,
+//! angles logged in degrees or two joints' columns exchanged are not
+//! missing physics, and the diagnosis would "explain" them with wrong
+//! effects and a wall of notes. When a check fails nothing is named and
+//! each finding says what to check ([`Refusal`]; `sdnn diagnose` exits 3).
 //!
 //! Three checks, each against a threshold a real missing effect does not
 //! reach (docs/diagnosis.md, "The sanity gate"):
 //! - [`positions`]: every joint stays within its description's limits
 //!   (with a tenth of its range to spare), before anything is fitted;
 //! - [`scale`]: the measured torque follows the model's with a positive
-//!   gain (at least half of it, three standard errors clear);
-//! - [`relabel`]: no exchange of two joints' torque columns fits the
-//!   rigid body much better than the columns as recorded.
+//!   gain (it enters with at least half of it, three standard errors
+//!   clear, where the model predicts a sizeable torque), and the joint's
+//!   own friction resists the motion;
+//! - [`relabel`]: no exchange of two joints' torque columns fits the rigid
+//!   body (free inertial parameters) much better than the recorded order.
 
 mod positions;
 mod relabel;
@@ -38,8 +39,10 @@ pub enum Check {
     /// Positions beyond the limits that fit them once read as degrees
     /// (`value`: the largest |q| as recorded).
     Degrees,
-    /// The measured torque runs against the model's (`value`: the fitted
-    /// gain of the model's torque, near -1).
+    /// The measured torque runs against the model's, or its friction
+    /// pushes the motion (`value`: the fitted gain of the model's torque,
+    /// near -1 unless the model's torque is too small to tell; null where
+    /// the model predicts none).
     TorqueSign,
     /// The measured torque does not follow the model's (`value`: the
     /// fitted gain, below 0.5).
@@ -91,9 +94,10 @@ pub struct Sanity {
     /// torque (1 when the model's torque is as measured) with its standard
     /// error, or `None` where the model predicts no torque to compare.
     pub model_torque_gain: Vec<Option<Estimate>>,
-    /// Per joint the mean power of the joint's own fitted friction, N m
-    /// rad/s (W; N m/s on a prismatic joint), with its standard error:
-    /// positive where friction resists the motion.
+    /// Per joint the mean power of the joint's own fitted friction, W
+    /// (torque times angular velocity; force times velocity on a prismatic
+    /// joint), with its standard error: positive where friction resists
+    /// the motion; `None` where the joint does not move.
     pub friction_power: Vec<Option<Estimate>>,
     /// The exchange of two joints' torque columns that fits the rigid body
     /// best, with its unexplained share over the recorded order's
