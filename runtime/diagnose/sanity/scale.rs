@@ -155,7 +155,8 @@ pub(super) fn gain(data: &Stacked, j: usize) -> Gain {
     };
     let (a, b) = total(None);
     let yy: f64 = s.yy.iter().sum();
-    if !(yy > 0.0) {
+    // A torque that is zero (or not finite) throughout says nothing.
+    if yy.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return nothing;
     }
     let theta = pseudo_solve(&a, &b);
