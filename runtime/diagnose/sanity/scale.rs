@@ -37,9 +37,10 @@ pub const FLIPPED_GAIN: f64 = -0.5;
 /// The least model torque RMS, as a share of the measured torque RMS, for
 /// a torque that does not follow the model's to be called a data error:
 /// where the model predicts less, the joint's torque is mostly what the
-/// model lacks (a wrist's friction: 16% on the real Panda log's joint 7,
-/// whose residual is 101% of its torque), and a model that explains little
-/// of it is a model with something missing, the diagnosis's job. A torque
+/// model lacks (a wrist's friction: the model predicts about a sixth of
+/// the real Panda log's joint 7, whose residual is 101% of its torque),
+/// and a model that explains little of it is a model with something
+/// missing, the diagnosis's job. A torque
 /// column of another quantity or in other units is far from it (a current
 /// in A for a torque of 0.1 N m/A: the model's torque is 10 times the
 /// logged one).
