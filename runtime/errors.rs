@@ -17,6 +17,26 @@ pub fn message(error: &anyhow::Error) -> String {
     text
 }
 
+/// Exit code of a failed command: bad input or arguments.
+pub const BAD_INPUT: u8 = 2;
+
+/// Exit code of `sdnn diagnose` when the recordings fail its sanity gate:
+/// nothing is named, and the data (a torque's sign, the angles' unit, the
+/// joint order), not the command line, need checking.
+pub const FAILED_SANITY_GATE: u8 = 3;
+
+/// The exit code of `error`.
+pub fn exit_code(error: &anyhow::Error) -> u8 {
+    if error
+        .chain()
+        .any(|e| e.downcast_ref::<crate::diagnose::Refusal>().is_some())
+    {
+        FAILED_SANITY_GATE
+    } else {
+        BAD_INPUT
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,7 +14,7 @@ fn main() -> ExitCode {
                 return ExitCode::SUCCESS;
             }
             sdnn::say!("sdnn: {}", sdnn::errors::message(&error));
-            ExitCode::from(2)
+            ExitCode::from(sdnn::errors::exit_code(&error))
         }
     }
 }

@@ -4,59 +4,97 @@
 //! read, tested and changed from the modules below it.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
 
 use crate::util::root;
 
-/// Each module of the folder and the sibling modules its code (not its
-/// tests, not its comments) names through `super::` or `crate::diagnose::`;
-/// `mod` is the folder's own `mod.rs`, and an item named on the parent
-/// (`super::Kind`) counts as an edge to it.
-fn imports(folder: &str) -> BTreeMap<String, BTreeSet<String>> {
-    let dir = root().join(folder);
-    let mut sources = BTreeMap::new();
-    for entry in std::fs::read_dir(&dir).unwrap() {
+/// The code of each module of the folder, without its tests and comments,
+/// with the prefixes by which it names the folder's modules: a file's own
+/// `super::` is the folder; in a folder module (`sanity/`), `mod.rs` says
+/// `super::` and its files `super::super::`.
+fn sources(dir: &Path) -> BTreeMap<String, Vec<(String, Vec<&'static str>)>> {
+    let code = |path: &Path| {
+        let text = std::fs::read_to_string(path).unwrap();
+        let code = text.split("#[cfg(test)]\nmod tests").next().unwrap_or("");
+        code.lines()
+            .filter(|l| !l.trim_start().starts_with("//"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let mut modules = BTreeMap::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();
+        let name = path.file_stem().unwrap().to_string_lossy().into_owned();
         if path.extension().is_some_and(|e| e == "rs") {
-            let name = path.file_stem().unwrap().to_string_lossy().into_owned();
-            sources.insert(name, std::fs::read_to_string(&path).unwrap());
+            modules.insert(
+                name,
+                vec![(code(&path), vec!["super::", "crate::diagnose::"])],
+            );
+        } else if path.join("mod.rs").exists() {
+            let mut files = Vec::new();
+            for file in std::fs::read_dir(&path).unwrap() {
+                let file = file.unwrap().path();
+                let stem = file.file_stem().unwrap().to_string_lossy().into_owned();
+                if file.extension().is_none_or(|e| e != "rs") || stem == "tests" {
+                    continue;
+                }
+                let prefixes = if stem == "mod" {
+                    vec!["super::", "crate::diagnose::"]
+                } else {
+                    vec!["super::super::", "crate::diagnose::"]
+                };
+                files.push((code(&file), prefixes));
+            }
+            modules.insert(name, files);
         }
     }
-    let names: BTreeSet<String> = sources.keys().cloned().collect();
-    sources
+    modules
+}
+
+/// Each module of the folder and the sibling modules its code names
+/// through `super::` or `crate::diagnose::`; `mod` is the folder's own
+/// `mod.rs`, and an item named on the parent (`super::Kind`) counts as an
+/// edge to it.
+fn imports(folder: &str) -> BTreeMap<String, BTreeSet<String>> {
+    let modules = sources(&root().join(folder));
+    let names: BTreeSet<String> = modules.keys().cloned().collect();
+    modules
         .iter()
-        .map(|(module, text)| {
-            let code = text.split("#[cfg(test)]\nmod tests").next().unwrap_or("");
+        .map(|(module, files)| {
             let mut used = BTreeSet::new();
-            for line in code.lines().filter(|l| !l.trim_start().starts_with("//")) {
-                for prefix in ["super::", "crate::diagnose::"] {
-                    for (at, _) in line.match_indices(prefix) {
-                        let rest = &line[at + prefix.len()..];
-                        let word: String = rest
-                            .trim_start_matches('{')
-                            .chars()
-                            .take_while(|c| c.is_alphanumeric() || *c == '_')
-                            .collect();
-                        if names.contains(&word) && word != *module {
-                            used.insert(word);
-                        } else if word.starts_with(char::is_uppercase) && module != "mod" {
-                            used.insert("mod".to_string());
+            for (code, prefixes) in files {
+                for line in code.lines() {
+                    for prefix in prefixes {
+                        for (at, _) in line.match_indices(prefix) {
+                            let rest = &line[at + prefix.len()..];
+                            let word: String = rest
+                                .trim_start_matches('{')
+                                .chars()
+                                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                                .collect();
+                            if names.contains(&word) && word != *module {
+                                used.insert(word);
+                            } else if word.starts_with(char::is_uppercase) && module != "mod" {
+                                used.insert("mod".to_string());
+                            }
                         }
                     }
-                }
-                if module == "mod" {
-                    for word in line.split(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
-                    {
-                        if let Some((first, _)) = word.split_once("::")
-                            && names.contains(first)
-                            && first != "mod"
-                        {
-                            used.insert(first.to_string());
-                        }
+                    if module == "mod" {
+                        used.extend(paths_from_mod(line, &names));
                     }
                 }
             }
             (module.clone(), used)
         })
+        .collect()
+}
+
+/// The folder's modules `mod.rs` names on `line` (`select::select`).
+fn paths_from_mod(line: &str, names: &BTreeSet<String>) -> Vec<String> {
+    line.split(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+        .filter_map(|word| word.split_once("::"))
+        .map(|(first, _)| first.to_string())
+        .filter(|first| names.contains(first) && first != "mod")
         .collect()
 }
 
@@ -97,6 +135,7 @@ fn the_diagnosis_modules_import_without_cycles() {
     let graph = imports("runtime/diagnose");
     assert!(graph.len() > 10, "{graph:?}");
     assert!(graph["select"].contains("admit"), "{graph:?}");
+    assert!(graph["sanity"].contains("stacked"), "{graph:?}");
     if let Some(found) = cycle(&graph) {
         panic!(
             "runtime/diagnose/ imports in a circle: {} (move what they share into the module \

@@ -22,6 +22,7 @@ mod pointwise;
 mod prismatic;
 mod readers_fuzz;
 mod refit;
+mod sanity_gate;
 mod springs;
 mod stribeck;
 mod study;

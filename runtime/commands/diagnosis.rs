@@ -2,13 +2,15 @@
 //! the gap shrink.
 
 use super::*;
+use crate::diagnose::Refusal;
 
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
     /// The model to check: a compiled model's name, or a TOML description
-    /// (evaluated by the numeric dynamics, no rebuild needed).
-    #[arg(long, default_value = DEFAULT_NOMINAL)]
-    pub model: String,
+    /// (evaluated by the numeric dynamics, no rebuild needed) [default:
+    /// kinova_gen3_lite_3dof, the virtual robot's].
+    #[arg(long)]
+    pub model: Option<String>,
     /// Raw measured CSV files: one or more recordings, each cut into
     /// cross-validation segments.
     #[arg(long, required = true, num_args = 1..)]
@@ -28,6 +30,11 @@ pub struct DiagnoseArgs {
     /// stick-slip of plain dry friction; see docs/diagnosis.md).
     #[arg(long)]
     pub stribeck: bool,
+    /// Name effects even when the recordings fail the sanity gate (a torque
+    /// against the model's, positions beyond the limits, two joints that look
+    /// exchanged; see docs/diagnosis.md): only for recordings checked by hand.
+    #[arg(long)]
+    pub no_sanity_gate: bool,
     /// Write the named effects into the model's TOML (a `.bak` copy is kept).
     #[arg(long)]
     pub apply: bool,
@@ -40,12 +47,28 @@ pub struct DiagnoseArgs {
     pub plots: Option<PathBuf>,
 }
 
+impl DiagnoseArgs {
+    /// The model's name or file, as given or the default.
+    fn model_name(&self) -> &str {
+        self.model.as_deref().unwrap_or(DEFAULT_NOMINAL)
+    }
+}
+
 pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
-    let model = find_model(&args.model)?;
+    let model = find_model(args.model_name())?;
     crate::args::check_angle_units(model, args.input.angles.into())?;
-    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
+    // Checked before the fit, which can take minutes: a missing file is
+    // found now, not at the end.
+    let toml = args
+        .apply
+        .then(|| description_to_update(args, model))
+        .transpose()?;
+    let recordings = args
+        .input
+        .read_all(&args.data, Some(model.joint_names()))
+        .map_err(|e| name_the_model(e, args, model))?;
     let pipeline = args.filter.resolve(&recordings)?;
-    let report = crate::diagnose::diagnose(
+    let diagnosed = crate::diagnose::diagnose(
         model,
         &recordings,
         &pipeline,
@@ -53,9 +76,19 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
             reach: crate::diagnose::reach(model),
             segments: args.segments.map(|s| s as usize),
             stribeck: args.stribeck,
+            sanity_gate: !args.no_sanity_gate,
             ..crate::diagnose::Settings::default()
         },
-    )?;
+    );
+    let report = match diagnosed {
+        Ok(report) => report,
+        Err(error) => {
+            if let (Some(refusal), Format::Json) = (error.downcast_ref::<Refusal>(), args.format) {
+                crate::output::print_line(&serde_json::to_string_pretty(refusal)?)?;
+            }
+            return Err(error);
+        }
+    };
     match args.format {
         Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&report)?)?,
         Format::Text => crate::output::print(&report.text())?,
@@ -65,22 +98,69 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
             crate::say!("wrote {}", path.display());
         }
     }
-    if args.apply && !report.effects.is_empty() {
-        apply(args, model, &report)?;
+    if let Some(toml) = toml.filter(|_| !report.effects.is_empty()) {
+        apply(args, model, &report, &toml)?;
     }
     Ok(())
 }
 
-/// Writes the named effects into the description and says how to see the
-/// gap shrink.
-fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Result<()> {
-    let toml = match (&args.toml, crate::args::model_path(&args.model)) {
+/// A recording whose joint count is not the model's: the error names the
+/// model it was read for (the default when `--model` was not given) and
+/// how to choose another.
+fn name_the_model(
+    error: anyhow::Error,
+    args: &DiagnoseArgs,
+    model: &dyn Dynamics,
+) -> anyhow::Error {
+    let wrong_count = error.chain().any(|e| {
+        matches!(
+            e.downcast_ref::<crate::trajectory::TrajectoryError>(),
+            Some(crate::trajectory::TrajectoryError::WrongDof { .. })
+        )
+    });
+    if !wrong_count {
+        return error;
+    }
+    let which = match &args.model {
+        None => format!(
+            "model `{}`, the default when `--model` is not given,",
+            model.name()
+        ),
+        Some(_) => format!("model `{}`", model.name()),
+    };
+    anyhow::anyhow!(
+        "{}: {which} has {} joints; pass `--model NAME` for your arm (`sdnn models` lists the \
+         compiled ones) or `--model FILE.toml` (a description; `sdnn import-urdf` makes one)",
+        crate::errors::message(&error),
+        model.dof()
+    )
+}
+
+/// The description `--apply` will write: `--toml`, the `--model` file, or
+/// `models/NAME.toml` under the current folder; read and checked now, so
+/// that a missing or edited file stops the command before the fit.
+fn description_to_update(args: &DiagnoseArgs, model: &dyn Dynamics) -> Result<PathBuf> {
+    let toml = match (&args.toml, crate::args::model_path(args.model_name())) {
         (Some(path), _) => path.clone(),
         (None, Some(path)) => path,
         (None, None) => PathBuf::from(format!("models/{}.toml", model.name())),
     };
-    let on_disk = crate::bounded::read_description(&toml)
-        .with_context(|| format!("{}: cannot read", toml.display()))?;
+    let on_disk = match crate::bounded::read_description(&toml) {
+        Ok(text) => text,
+        Err(e) if args.toml.is_none() && crate::args::model_path(args.model_name()).is_none() => {
+            return Err(anyhow::Error::new(e).context(format!(
+                "{}: cannot read the description of compiled model `{}` that --apply would \
+                 update (it is looked for under the current folder): run from the repository \
+                 the model was built in, or pass `--toml FILE` (a copy of the description to \
+                 update)",
+                toml.display(),
+                model.name()
+            )));
+        }
+        Err(e) => {
+            return Err(anyhow::Error::new(e).context(format!("{}: cannot read", toml.display())));
+        }
+    };
     if let Err(e) = codegen::Description::parse(&on_disk, model.name(), &toml) {
         bail!(
             "--toml {}: not a robot description this tool reads: {e}",
@@ -99,6 +179,12 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
             toml.display()
         );
     }
+    Ok(toml)
+}
+
+/// Writes the named effects into the description and says how to see the
+/// gap shrink.
+fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis, toml: &Path) -> Result<()> {
     let description = crate::dynamics::parsed_description(model)?;
     let last = description
         .chain()
@@ -106,7 +192,7 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis) -> Resul
         .last()
         .map(|b| b.link.clone())
         .unwrap_or_default();
-    let applied = crate::diagnose::apply::apply_to_file(&toml, report, model.joint_names(), &last)?;
+    let applied = crate::diagnose::apply::apply_to_file(toml, report, model.joint_names(), &last)?;
     let backup = applied.backup;
     if applied.changes.is_empty() {
         crate::say!(

@@ -5,6 +5,7 @@ use serde::Serialize;
 
 use super::identify::Identifiability;
 use super::kind::Kind;
+use super::sanity::Sanity;
 use super::stacked::Layout;
 use super::unconstrained::Unconstrained;
 use super::unexplained::Unexplained;
@@ -78,6 +79,8 @@ pub struct Diagnosis {
     /// Structure the data supports but no physical effect explains, e.g. a
     /// negative armature (the model's inertia about a joint is too high).
     pub notes: Vec<String>,
+    /// What the sanity gate measured on these recordings (they passed it).
+    pub sanity: Sanity,
     /// Every sample's residual before and after the named effects (fitted
     /// to all data), for plots; not part of the JSON report.
     #[serde(skip)]

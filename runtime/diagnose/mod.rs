@@ -94,6 +94,7 @@ mod modelled;
 mod moments;
 pub mod plots;
 mod report;
+mod sanity;
 mod search;
 mod select;
 mod settings;
@@ -115,6 +116,7 @@ pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
 use moments::Moments;
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
+pub use sanity::{Check, Exchange, Finding, Refusal, Sanity};
 use select::{body_identifiable, mass_identifiable, select};
 pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
 pub use stacked::Layout;
@@ -282,6 +284,10 @@ pub fn diagnose(
     let size = Some(reach(model))
         .filter(|r| r.is_finite() && *r > 0.0)
         .unwrap_or(1.0);
+    let misplaced = sanity::positions(model, recordings);
+    if settings.sanity_gate {
+        sanity::refuse(model, &misplaced)?;
+    }
     let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings)?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
@@ -291,6 +297,11 @@ pub fn diagnose(
             layout.segments
         );
     }
+    let mut sanity = sanity::torques(model, recordings, &data, &candidates, settings.min_t);
+    if settings.sanity_gate {
+        sanity::refuse(model, &sanity.findings)?;
+    }
+    sanity.findings.splice(0..0, misplaced);
     let moments = Moments::new(&data, &candidates);
     // A link whose origin does not accelerate has no mass column of its
     // own: its mass acts only through its second moments, which identify it
@@ -396,6 +407,7 @@ pub fn diagnose(
         effects,
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
+        sanity,
         residuals,
     })
 }

@@ -24,6 +24,9 @@ pub struct Settings {
     /// confined to velocity reversals, is confounded with the stick-slip
     /// of plain dry friction; docs/diagnosis.md).
     pub stribeck: bool,
+    /// Whether the sanity gate runs first (see [`super::sanity`]): on by
+    /// default; off only for recordings a person has checked by hand.
+    pub sanity_gate: bool,
 }
 
 /// Shortest total duration diagnosed, s: two cross-validation segments of
@@ -50,6 +53,7 @@ impl Default for Settings {
             com_resolution: 0.05,
             segments: None,
             stribeck: false,
+            sanity_gate: true,
         }
     }
 }

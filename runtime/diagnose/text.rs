@@ -22,6 +22,16 @@ impl Diagnosis {
             sig(l.segment_seconds)
         );
         let _ = writeln!(out, "{}", self.preprocessing.summary());
+        if !self.sanity.findings.is_empty() {
+            let _ = writeln!(
+                out,
+                "the sanity checks failed (diagnosed anyway, --no-sanity-gate): what follows may \
+                 explain a data error as physics:"
+            );
+            for finding in &self.sanity.findings {
+                let _ = writeln!(out, "  - {}", finding.message);
+            }
+        }
         for j in 0..self.mse_before.len() {
             let (before, after) = (self.mse_before[j], self.mse_after[j]);
             let torque = self.torque_unit(j + 1);

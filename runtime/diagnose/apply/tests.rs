@@ -25,6 +25,7 @@ fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
         unexplained: vec![],
         identifiability: Default::default(),
         notes: vec![],
+        sanity: Default::default(),
         residuals: Default::default(),
     }
 }

@@ -1,0 +1,178 @@
+//! The sanity gate: before any effect is named, checks that the recordings
+//! can be the model's robot as logged. A torque logged with the other sign,
+//! angles logged in degrees or two joints' columns exchanged are not
+//! missing physics, and the diagnosis would "explain" them with wrong
+//! effects and a wall of notes. When a check fails nothing is named and
+//! each finding says what to check ([`Refusal`]; `sdnn diagnose` exits 3).
+//!
+//! Three checks, each against a threshold a real missing effect does not
+//! reach (docs/diagnosis.md, "The sanity gate"):
+//! - [`positions`]: every joint stays within its description's limits
+//!   (with a tenth of its range to spare), before anything is fitted;
+//! - [`scale`]: the measured torque follows the model's with a positive
+//!   gain (it enters with at least half of it, three standard errors
+//!   clear, where the model predicts a sizeable torque), and the joint's
+//!   own friction resists the motion;
+//! - [`relabel`]: no exchange of two joints' torque columns fits the rigid
+//!   body (free inertial parameters) much better than the recorded order.
+
+mod positions;
+mod relabel;
+mod scale;
+
+use serde::Serialize;
+
+use super::candidate::Candidate;
+use super::stacked::Stacked;
+use crate::dynamics::Dynamics;
+use crate::trajectory::Trajectory;
+pub use relabel::Exchange;
+pub use scale::Estimate;
+
+/// What the gate checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Check {
+    /// Positions beyond the description's limits (`value`: the farthest
+    /// excursion past a limit, rad or m).
+    BeyondLimits,
+    /// Positions beyond the limits that fit them once read as degrees
+    /// (`value`: the largest |q| as recorded).
+    Degrees,
+    /// The measured torque runs against the model's, or its friction
+    /// pushes the motion (`value`: the fitted gain of the model's torque,
+    /// near -1 unless the model's torque is too small to tell; null where
+    /// the model predicts none).
+    TorqueSign,
+    /// The measured torque does not follow the model's (`value`: the
+    /// fitted gain, below 0.5).
+    TorqueUnexplained,
+    /// Two joints' torques fit the rigid body far better exchanged
+    /// (`value`: the unexplained share exchanged over as recorded).
+    SwappedJoints,
+}
+
+/// One failed check.
+#[derive(Debug, Clone, Serialize)]
+pub struct Finding {
+    pub check: Check,
+    /// The joints concerned, 1-based.
+    pub joints: Vec<usize>,
+    /// The check's number (see [`Check`]).
+    pub value: f64,
+    /// What the check saw and what to check, as printed.
+    pub message: String,
+}
+
+/// The recordings failed the gate: nothing is named.
+#[derive(Debug, Clone, Serialize, thiserror::Error)]
+pub struct Refusal {
+    pub model: String,
+    pub findings: Vec<Finding>,
+}
+
+impl std::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the recordings fail the sanity checks against model `{}`, so no effect is named \
+             (`--no-sanity-gate` diagnoses anyway):",
+            self.model
+        )?;
+        for finding in &self.findings {
+            write!(f, "\n  - {}", finding.message)?;
+        }
+        Ok(())
+    }
+}
+
+/// What the torque checks measured on recordings that passed them (the
+/// report's `sanity`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Sanity {
+    /// Per joint the fitted gain of the model's torque in the measured
+    /// torque (1 when the model's torque is as measured) with its standard
+    /// error, or `None` where the model predicts no torque to compare.
+    pub model_torque_gain: Vec<Option<Estimate>>,
+    /// Per joint the mean power of the joint's own fitted friction, W
+    /// (torque times angular velocity; force times velocity on a prismatic
+    /// joint), with its standard error: positive where friction resists
+    /// the motion; `None` where the joint does not move.
+    pub friction_power: Vec<Option<Estimate>>,
+    /// The exchange of two joints' torque columns that fits the rigid body
+    /// best, with its unexplained share over the recorded order's
+    /// (`None` for one joint).
+    pub best_exchange: Option<Exchange>,
+    /// The checks that failed, when the gate was skipped
+    /// (`--no-sanity-gate`); empty otherwise.
+    pub findings: Vec<Finding>,
+}
+
+/// The findings of the position check (on the positions as logged,
+/// before preprocessing).
+pub(super) fn positions(model: &dyn Dynamics, recordings: &[Trajectory]) -> Vec<Finding> {
+    positions::findings(model, recordings)
+}
+
+/// The torque checks on the stacked data: whether the torques run against
+/// the model's, do not follow it, or fit the rigid body far better with two
+/// joints exchanged. `min_t`: the |t| a gain must clear; the recordings
+/// as logged for a hint on degrees.
+pub(super) fn torques(
+    model: &dyn Dynamics,
+    recordings: &[Trajectory],
+    data: &Stacked,
+    candidates: &[Candidate],
+    min_t: f64,
+) -> Sanity {
+    let hint = positions::beyond_a_turn(model, recordings).unwrap_or_default();
+    let gains: Vec<scale::Gain> = (0..data.dof).map(|j| scale::gain(data, j)).collect();
+    let exchanges = relabel::exchanges(data, candidates);
+    let swapped = disjoint(exchanges.iter().filter(|e| e.swapped()).collect());
+    let mut findings: Vec<Finding> = swapped.iter().map(|e| e.finding()).collect();
+    // A joint in an exchanged pair fails the gain check because of it.
+    let exchanged = |j: usize| swapped.iter().any(|e| e.joints.contains(&(j + 1)));
+    findings.extend(
+        gains
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| !exchanged(*j))
+            .filter_map(|(j, gain)| gain.finding(data, j, min_t, &hint)),
+    );
+    Sanity {
+        model_torque_gain: gains.iter().map(|g| g.model).collect(),
+        friction_power: gains.iter().map(|g| g.friction_power).collect(),
+        best_exchange: exchanges
+            .into_iter()
+            .min_by(|a, b| a.ratio.total_cmp(&b.ratio)),
+        findings,
+    }
+}
+
+/// The exchanges that share no joint, best first: with joints 2 and 4
+/// exchanged, exchanging 1 and 4 too can fit joint 4's equations better
+/// than the recorded order, but far worse than exchanging 2 and 4.
+fn disjoint(mut exchanges: Vec<&Exchange>) -> Vec<&Exchange> {
+    exchanges.sort_by(|a, b| a.ratio.total_cmp(&b.ratio));
+    let mut kept: Vec<&Exchange> = Vec::new();
+    for e in exchanges {
+        if !kept
+            .iter()
+            .any(|k| k.joints.iter().any(|j| e.joints.contains(j)))
+        {
+            kept.push(e);
+        }
+    }
+    kept
+}
+
+/// Refuses the recordings when a check failed.
+pub(super) fn refuse(model: &dyn Dynamics, findings: &[Finding]) -> Result<(), Refusal> {
+    if findings.is_empty() {
+        return Ok(());
+    }
+    Err(Refusal {
+        model: model.name().to_string(),
+        findings: findings.to_vec(),
+    })
+}
