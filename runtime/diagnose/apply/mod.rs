@@ -30,12 +30,20 @@ pub fn apply_to_text(
         .parse()
         .context("the description is not valid TOML")?;
     for effect in &diagnosis.effects {
+        // On a joint whose logged torque is s times the applied one, the
+        // fit's joint effects are in logged units: evaluate divides the
+        // logged torque by s (`--torque-scale`), so the TOML takes them
+        // divided by s, and the corrected recording and the model agree.
+        let per_scale = effect
+            .joint
+            .map_or(1.0, |j| 1.0 / sensor_scale(diagnosis, j));
         let value = |name: &str| {
             effect
                 .parameters
                 .get(name)
                 .and_then(serde_json::Value::as_f64)
         };
+        let scaled = |name: &str| value(name).map(|v| v * per_scale);
         match (effect.kind, effect.joint) {
             (Kind::Payload, _) => {
                 let mass = value("mass").context("payload without mass")?;
@@ -107,13 +115,13 @@ pub fn apply_to_text(
             (Kind::TorqueScale | Kind::TorqueDelay, _) => {}
             (Kind::JointSpring, Some(joint)) => {
                 let name = joints.get(joint - 1).context("joint index out of range")?;
-                let stiffness = value("stiffness").context("spring without stiffness")?;
+                let stiffness = scaled("stiffness").context("spring without stiffness")?;
                 let rest = value("rest").context("spring without rest angle")?;
                 add_spring(&mut doc, name, stiffness, rest)?;
             }
             (Kind::StribeckFriction, Some(joint)) => {
                 let name = joints.get(joint - 1).context("joint index out of range")?;
-                let excess = value("excess").context("Stribeck friction without excess")?;
+                let excess = scaled("excess").context("Stribeck friction without excess")?;
                 let velocity = value("velocity").context("Stribeck friction without velocity")?;
                 add_shaped(
                     &mut doc,
@@ -125,8 +133,8 @@ pub fn apply_to_text(
             (Kind::TorqueRipple, Some(joint)) => {
                 let name = joints.get(joint - 1).context("joint index out of range")?;
                 let amplitudes = [
-                    ("ripple_sin", value("sin").context("ripple without sin")?),
-                    ("ripple_cos", value("cos").context("ripple without cos")?),
+                    ("ripple_sin", scaled("sin").context("ripple without sin")?),
+                    ("ripple_cos", scaled("cos").context("ripple without cos")?),
                 ];
                 let cycles = value("cycles").context("ripple without cycles")?;
                 add_shaped(&mut doc, name, &amplitudes, ("ripple_cycles", cycles))?;
@@ -156,7 +164,7 @@ pub fn apply_to_text(
                     &mut doc,
                     name,
                     key,
-                    value(parameter).context("missing parameter")?,
+                    scaled(parameter).context("missing parameter")?,
                 )?;
             }
             (kind, None) => bail!("{kind:?} has no joint"),
@@ -170,6 +178,20 @@ pub fn apply_to_text(
         text.insert(0, '\u{feff}');
     }
     Ok(text)
+}
+
+/// The scale a diagnosis found on joint `joint`'s logged torque (1: none).
+fn sensor_scale(diagnosis: &Diagnosis, joint: usize) -> f64 {
+    diagnosis
+        .effects
+        .iter()
+        .filter(|e| e.kind == Kind::TorqueScale && e.joint == Some(joint))
+        .filter_map(|e| {
+            e.parameters
+                .get("scale")
+                .and_then(serde_json::Value::as_f64)
+        })
+        .product()
 }
 
 /// Adds a spring k (q - rest) to a joint's: the stiffnesses add, the rest

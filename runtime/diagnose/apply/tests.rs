@@ -297,3 +297,39 @@ fn a_ripple_correction_adds_and_keeps_the_harmonic_as_written() {
         "{out}"
     );
 }
+
+/// The fit's joint effects on a joint with a torque scale s are in logged
+/// units; evaluate divides the logged torque by s, so the TOML takes them
+/// divided by s (a spring's rest angle stays as fitted).
+#[test]
+fn a_scaled_joints_effects_are_written_in_applied_units() {
+    let d = diagnosis(vec![
+        effect(
+            Kind::TorqueScale,
+            Some(1),
+            serde_json::json!({"scale": 1.25}),
+        ),
+        effect(
+            Kind::ViscousFriction,
+            Some(1),
+            serde_json::json!({"coefficient": 0.5}),
+        ),
+        effect(
+            Kind::JointSpring,
+            Some(1),
+            serde_json::json!({"stiffness": 2.5, "rest": 0.3}),
+        ),
+    ]);
+    let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
+    // 0.1 + 0.5 / 1.25 and 2.5 / 1.25 about 0.3.
+    assert!(out.contains("viscous = 0.5"), "{out}");
+    assert!(out.contains("spring = 2.0"), "{out}");
+    assert!(out.contains("spring_rest = 0.3"), "{out}");
+    let mut effects = d.effects.clone();
+    let modelled = vec![codegen::JointEffects {
+        viscous: 0.1,
+        ..Default::default()
+    }];
+    crate::diagnose::modelled::add_totals(&mut effects, &modelled);
+    assert_eq!(effects[1].total["coefficient"], serde_json::json!(0.5));
+}
