@@ -14,8 +14,10 @@
 
 pub mod fourier;
 pub mod information;
+mod problem;
 pub mod report;
 pub mod search;
+pub mod spectrum;
 pub mod weights;
 
 use anyhow::{Result, bail};
@@ -24,8 +26,9 @@ use nalgebra::DMatrix;
 use crate::dynamics::Dynamics;
 use crate::seeds::{Purpose, derive};
 use crate::trajectory::Trajectory;
-use fourier::{Bounds, JointSeries, Schedule, kinematic_scale};
-use information::{Parameters, Samples, condition_number, inverse_diagonal, unit_diagonal};
+use fourier::{Basis, Bounds, JointSeries, Schedule};
+use information::{Parameters, Samples, condition_number, inverse_diagonal};
+use problem::Problem;
 use search::{Budget, minimize};
 
 /// What to design.
@@ -165,7 +168,8 @@ pub fn design(
         parameters: &parameters,
         bounds,
         schedule,
-        grid: &grid,
+        basis: Basis::new(&schedule, &grid),
+        grid_len: grid.len(),
         focus: &focus,
         share: config.torque_share,
     };
@@ -176,7 +180,7 @@ pub fn design(
         derive(config.seed, Purpose::Excitation, 1),
         config.budget,
     );
-    let Some(coarse) = problem.motion(&found.x, &grid) else {
+    let Some((coarse, _)) = problem.motion(&found.x) else {
         bail!(
             "no motion inside the limits keeps the model's torque within {:.0}% of the effort limits \
              (the arm's weight alone may exceed them at the joints' mid-range): check the \
@@ -277,129 +281,6 @@ fn schedule_times(schedule: &Schedule, rate: f64) -> Vec<f64> {
     (0..=count).map(|i| i as f64 / rate).collect()
 }
 
-/// The evaluation of one set of raw coefficients.
-struct Problem<'a> {
-    model: &'a dyn Dynamics,
-    parameters: &'a Parameters,
-    bounds: &'a Bounds,
-    schedule: Schedule,
-    grid: &'a [f64],
-    focus: &'a [usize],
-    share: f64,
-}
-
-/// Factor by which every amplitude shrinks while the torque is too high,
-/// and how often it may.
-const SHRINK: f64 = 0.85;
-const SHRINKS: usize = 14;
-
-impl Problem<'_> {
-    /// The motion of raw coefficients `x`: each joint scaled to its limits on
-    /// `times`, then all shrunk until the torque fits; `None` if it never does.
-    fn motion(&self, x: &[f64], times: &[f64]) -> Option<Vec<JointSeries>> {
-        let per = self.schedule.per_joint();
-        let joints: Vec<JointSeries> = (0..self.model.dof())
-            .map(|j| {
-                let series = JointSeries::from_raw(
-                    &x[j * per..(j + 1) * per],
-                    self.bounds.position[j],
-                    &self.schedule,
-                    j,
-                );
-                let f = kinematic_scale(&series, &self.schedule, times, self.bounds, j);
-                series.scaled(f)
-            })
-            .collect();
-        self.within_torque(joints, times)
-    }
-
-    /// `joints` shrunk until the torque fits on `times`.
-    fn within_torque(
-        &self,
-        mut joints: Vec<JointSeries>,
-        times: &[f64],
-    ) -> Option<Vec<JointSeries>> {
-        for _ in 0..=SHRINKS {
-            if self.torque_ratio(&joints, times)? <= 1.0 {
-                return Some(joints);
-            }
-            joints = joints.iter().map(|s| s.scaled(SHRINK)).collect();
-        }
-        None
-    }
-
-    /// The coarse design checked on the written samples: amplitudes lowered
-    /// where a peak between the coarse samples passes a limit.
-    fn refine(&self, coarse: Vec<JointSeries>, times: &[f64]) -> Option<Vec<JointSeries>> {
-        let joints = coarse
-            .iter()
-            .enumerate()
-            .map(|(j, s)| {
-                let f = kinematic_scale(s, &self.schedule, times, self.bounds, j)
-                    / fourier::KINEMATIC_SHARE;
-                if f < 1.0 {
-                    s.scaled(f * fourier::KINEMATIC_SHARE)
-                } else {
-                    s.clone()
-                }
-            })
-            .collect();
-        self.within_torque(joints, times)
-    }
-
-    /// Largest |tau| / (share x effort) over joints and `times`.
-    fn torque_ratio(&self, joints: &[JointSeries], times: &[f64]) -> Option<f64> {
-        if self.bounds.effort.iter().all(Option::is_none) {
-            return Some(0.0);
-        }
-        let mut worst = 0.0_f64;
-        for &t in times {
-            let (q, qd, qdd) = state(&self.schedule, joints, t);
-            let tau = self.model.tau(&q, &qd, &qdd).ok()?;
-            for (j, limit) in self.bounds.effort.iter().enumerate() {
-                if let Some(l) = limit {
-                    worst = worst.max(tau[j].abs() / (self.share * l));
-                }
-            }
-        }
-        worst.is_finite().then_some(worst)
-    }
-
-    /// ln of the condition number, plus (with `--from`) ln of the weighted
-    /// base parameters' mean variance inflation: their variance relative to
-    /// what it would be were their columns orthogonal to all others.
-    fn cost(&self, x: &[f64]) -> f64 {
-        let Some(joints) = self.motion(x, self.grid) else {
-            return f64::INFINITY;
-        };
-        let samples = sample_states(&self.schedule, &joints, self.grid);
-        let Ok(f) = self
-            .parameters
-            .information(self.model, &samples, 1.0 / self.grid.len() as f64)
-        else {
-            return f64::INFINITY;
-        };
-        let Some(eigen) = crate::kernels::symmetric_eigenvalues(unit_diagonal(&f)) else {
-            return f64::INFINITY;
-        };
-        if eigen.min() <= 0.0 {
-            return f64::INFINITY;
-        }
-        let cond = eigen.max() / eigen.min();
-        if self.focus.is_empty() {
-            return cond.ln();
-        }
-        match inverse_diagonal(&unit_diagonal(&f)) {
-            Some(v) => {
-                let inflation =
-                    self.focus.iter().map(|&k| v[k]).sum::<f64>() / self.focus.len() as f64;
-                cond.ln() + inflation.ln()
-            }
-            None => f64::INFINITY,
-        }
-    }
-}
-
 /// The base parameters the weighted names are or are regrouped into.
 fn weighted_indices(parameters: &Parameters, weighted: &[String]) -> Vec<usize> {
     (0..parameters.rank())
@@ -422,10 +303,6 @@ fn state(schedule: &Schedule, joints: &[JointSeries], t: f64) -> (Vec<f64>, Vec<
         out.2.push(qdd);
     }
     out
-}
-
-fn sample_states(schedule: &Schedule, joints: &[JointSeries], times: &[f64]) -> Samples {
-    sample_motion(&|t| state(schedule, joints, t), times)
 }
 
 fn sample_motion(motion: Motion<'_>, times: &[f64]) -> Samples {
