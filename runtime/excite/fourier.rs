@@ -225,9 +225,10 @@ impl Basis {
         let n = schedule.harmonics;
         let joints = (0..schedule.joints)
             .map(|j| {
+                let pause_at = schedule.pause_at(j);
                 let (mut still, mut sin, mut cos) = (Vec::new(), Vec::new(), Vec::new());
                 for &t in times {
-                    let (u, at_rest) = moving_time(schedule, schedule.pause_at(j), t);
+                    let (u, at_rest) = moving_time(schedule, pause_at, t);
                     still.push(at_rest);
                     for k in 0..n {
                         let (s, c) = (schedule.omega * (k + 1) as f64 * u).sin_cos();
@@ -273,44 +274,40 @@ impl Basis {
 }
 
 /// The rows c with c . [a, b] = velocity and acceleration at u = 0 and at
-/// the pause (u = `pause_at`); the pause's rows only when it lies inside
-/// the moving time (at a period's end they repeat the first two).
+/// the pause (u = `pause_at`); the pause's rows only when it lies inside a
+/// period (at a period's end they repeat the first two) and three or more
+/// harmonics leave the motion some freedom.
 fn constraints(schedule: &Schedule, pause_at: f64) -> Vec<Vec<f64>> {
     let n = schedule.harmonics;
     let w = |k: usize| schedule.omega * (k + 1) as f64;
-    let mut rows = vec![
+    // Velocity and acceleration at u of a and b (sin and cos terms).
+    let velocity = |u: f64| -> Vec<f64> {
         (0..2 * n)
-            .map(|i| if i < n { w(i) } else { 0.0 })
-            .collect::<Vec<f64>>(),
+            .map(|i| {
+                if i < n {
+                    w(i) * (w(i) * u).cos()
+                } else {
+                    -w(i - n) * (w(i - n) * u).sin()
+                }
+            })
+            .collect()
+    };
+    let acceleration = |u: f64| -> Vec<f64> {
         (0..2 * n)
-            .map(|i| if i < n { 0.0 } else { w(i - n).powi(2) })
-            .collect(),
-    ];
+            .map(|i| {
+                if i < n {
+                    w(i).powi(2) * (w(i) * u).sin()
+                } else {
+                    w(i - n).powi(2) * (w(i - n) * u).cos()
+                }
+            })
+            .collect()
+    };
+    let mut rows = vec![velocity(0.0), acceleration(0.0)];
     let phase = (pause_at * schedule.omega / TAU).fract();
     if schedule.pause > 0.0 && phase > 1e-6 && phase < 1.0 - 1e-6 && n >= 3 {
-        let sc = |k: usize| (w(k) * pause_at).sin_cos();
-        rows.push(
-            (0..2 * n)
-                .map(|i| {
-                    if i < n {
-                        w(i) * sc(i).1
-                    } else {
-                        -w(i - n) * sc(i - n).0
-                    }
-                })
-                .collect(),
-        );
-        rows.push(
-            (0..2 * n)
-                .map(|i| {
-                    if i < n {
-                        w(i).powi(2) * sc(i).0
-                    } else {
-                        w(i - n).powi(2) * sc(i - n).1
-                    }
-                })
-                .collect(),
-        );
+        rows.push(velocity(pause_at));
+        rows.push(acceleration(pause_at));
     }
     rows
 }
