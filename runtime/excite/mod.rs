@@ -341,10 +341,12 @@ fn check(model: &dyn Dynamics, bounds: &Bounds, config: &Config) -> Result<()> {
 }
 
 /// Samples of the design grid: 16 per period of the highest harmonic, at
-/// least 240 (the rests get a share), at most 4000. The search finds
-/// motions that are well conditioned at the grid's samples only: with 8 per
-/// period the condition number between them was up to 10% worse and the
-/// motion chosen among the seeds' was the luckiest on the grid, not the best.
+/// least 240 (the rests get a share), at most 4000. The search exploits
+/// the gaps between samples: with 8 per period (120 samples on the Panda)
+/// its motion's condition number on a grid twice as fine was 10% worse
+/// than on its own; on 16 per period the designs, compared on the report's
+/// grid, came out 4% better on the 3-DOF arm (7 seeds) and 15% on the
+/// Panda (2 seeds).
 fn design_samples(schedule: &Schedule) -> usize {
     let highest = schedule.base_hz() * schedule.harmonics as f64;
     ((16.0 * schedule.duration * highest).ceil() as usize).clamp(240, 4000)
