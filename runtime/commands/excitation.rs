@@ -42,10 +42,11 @@ pub struct ExciteArgs {
     /// predicted standard deviations [default: the virtual robot's].
     #[arg(long = "torque-noise", default_value_t = 0.05, value_parser = ranges::real(0.0, 1e3, true, "use a smaller unit"))]
     pub torque_noise: f64,
-    /// Generations of the search (each evaluates 8 motions; default 1800
-    /// / joints); longer searches find better conditioned motions, slowly.
-    #[arg(long, value_parser = ranges::integer(1, 100_000, "run the search again from the result's seed"))]
-    pub generations: Option<usize>,
+    /// Rounds of the search: each improves every joint's coefficients in
+    /// turn for 30 generations of 8 motions, the last quarter of them on the
+    /// condition number itself [default: 24 / joints, at least 2].
+    #[arg(long, value_parser = ranges::integer(1, 10_000, "run the search again from another seed"))]
+    pub rounds: Option<usize>,
     /// The trajectory to write (t, q, qd, qdd); the report (.md) and the
     /// plot (.svg) are written beside it with the same stem.
     #[arg(long)]
@@ -104,9 +105,21 @@ pub fn excite(args: &ExciteArgs) -> Result<()> {
         seed: args.seed,
         ..Config::new(args.duration, model.dof())
     };
+    // Rests only where the diagnosis asks what they tell (or, without one,
+    // for every parameter alike).
+    let config = if weighted.is_empty() || excite::weights::needs_rests(&weighted) {
+        config
+    } else {
+        config.without_rests()
+    };
+    let (rounds, exact_rounds) = args.rounds.map_or(
+        (config.budget.rounds, config.budget.exact_rounds),
+        excite::split_rounds,
+    );
     let config = Config {
         budget: excite::search::Budget {
-            generations: args.generations.unwrap_or(config.budget.generations),
+            rounds,
+            exact_rounds,
             ..config.budget
         },
         rest: args.rest.unwrap_or(config.rest),

@@ -121,17 +121,9 @@ impl JointSeries {
 
     /// (q, qd, qdd) at time t.
     pub fn eval(&self, schedule: &Schedule, t: f64) -> (f64, f64, f64) {
-        let mut u = t - schedule.rest;
-        if u > self.pause_at {
-            if u < self.pause_at + schedule.pause {
-                return (self.series(schedule, self.pause_at).0, 0.0, 0.0);
-            }
-            u -= schedule.pause;
-        }
-        if !(0.0..=schedule.moving()).contains(&u) {
-            return (self.centre, 0.0, 0.0);
-        }
-        self.series(schedule, u)
+        let (u, still) = moving_time(schedule, self.pause_at, t);
+        let (q, qd, qdd) = self.series(schedule, u);
+        if still { (q, 0.0, 0.0) } else { (q, qd, qdd) }
     }
 
     /// The series at moving time u.
@@ -158,45 +150,164 @@ impl JointSeries {
     }
 }
 
+/// A joint's moving time at time t (its pause at `pause_at` taken out),
+/// and whether it is still there: at a rest it is at u = 0 (the centre,
+/// as the series starts there), in its pause at the pause's start.
+fn moving_time(schedule: &Schedule, pause_at: f64, t: f64) -> (f64, bool) {
+    let mut u = t - schedule.rest;
+    if u > pause_at {
+        if u < pause_at + schedule.pause {
+            return (pause_at, true);
+        }
+        u -= schedule.pause;
+    }
+    if (0.0..=schedule.moving()).contains(&u) {
+        (u, false)
+    } else {
+        (0.0, true)
+    }
+}
+
+/// One joint's motion at a list of times.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Track {
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+}
+
+impl Track {
+    /// `series` evaluated at `times`.
+    pub fn new(series: &JointSeries, schedule: &Schedule, times: &[f64]) -> Track {
+        let mut track = Track {
+            q: Vec::with_capacity(times.len()),
+            qd: Vec::with_capacity(times.len()),
+            qdd: Vec::with_capacity(times.len()),
+        };
+        for &t in times {
+            let (q, qd, qdd) = series.eval(schedule, t);
+            track.q.push(q);
+            track.qd.push(qd);
+            track.qdd.push(qdd);
+        }
+        track
+    }
+
+    /// The track of the series scaled by `factor` about `centre`
+    /// ([`JointSeries::scaled`]).
+    pub fn scaled(&self, centre: f64, factor: f64) -> Track {
+        Track {
+            q: self
+                .q
+                .iter()
+                .map(|q| centre + factor * (q - centre))
+                .collect(),
+            qd: self.qd.iter().map(|v| factor * v).collect(),
+            qdd: self.qdd.iter().map(|a| factor * a).collect(),
+        }
+    }
+}
+
+/// The series' sines and cosines at fixed times, computed once: the search
+/// evaluates thousands of coefficient sets on the same grid, and computing
+/// them afresh took a third of its time.
+pub struct Basis {
+    omega: f64,
+    harmonics: usize,
+    /// Per joint: per time whether the joint is still, and sin, cos of
+    /// w_k u (time-major, `harmonics` per time).
+    joints: Vec<(Vec<bool>, Vec<f64>, Vec<f64>)>,
+}
+
+impl Basis {
+    /// The basis of every joint of `schedule` at `times`.
+    pub fn new(schedule: &Schedule, times: &[f64]) -> Basis {
+        let n = schedule.harmonics;
+        let joints = (0..schedule.joints)
+            .map(|j| {
+                let pause_at = schedule.pause_at(j);
+                let (mut still, mut sin, mut cos) = (Vec::new(), Vec::new(), Vec::new());
+                for &t in times {
+                    let (u, at_rest) = moving_time(schedule, pause_at, t);
+                    still.push(at_rest);
+                    for k in 0..n {
+                        let (s, c) = (schedule.omega * (k + 1) as f64 * u).sin_cos();
+                        sin.push(s);
+                        cos.push(c);
+                    }
+                }
+                (still, sin, cos)
+            })
+            .collect();
+        Basis {
+            omega: schedule.omega,
+            harmonics: n,
+            joints,
+        }
+    }
+
+    /// Joint `j`'s `series` at the basis's times (as [`Track::new`]).
+    pub fn track(&self, j: usize, series: &JointSeries) -> Track {
+        let (still, sin, cos) = &self.joints[j];
+        let n = self.harmonics;
+        let mut track = Track {
+            q: Vec::with_capacity(still.len()),
+            qd: Vec::with_capacity(still.len()),
+            qdd: Vec::with_capacity(still.len()),
+        };
+        for (i, &at_rest) in still.iter().enumerate() {
+            let (mut q, mut qd, mut qdd) = (series.centre, 0.0, 0.0);
+            for k in 0..n {
+                let (s, c) = (sin[i * n + k], cos[i * n + k]);
+                let (a, b) = (series.a[k], series.b[k]);
+                let w = self.omega * (k + 1) as f64;
+                q += a * s + b * (c - 1.0);
+                qd += w * (a * c - b * s);
+                qdd -= w * w * (a * s + b * c);
+            }
+            track.q.push(q);
+            track.qd.push(if at_rest { 0.0 } else { qd });
+            track.qdd.push(if at_rest { 0.0 } else { qdd });
+        }
+        track
+    }
+}
+
 /// The rows c with c . [a, b] = velocity and acceleration at u = 0 and at
-/// the pause (u = `pause_at`); the pause's rows only when it lies inside
-/// the moving time (at a period's end they repeat the first two).
+/// the pause (u = `pause_at`); the pause's rows only when it lies inside a
+/// period (at a period's end they repeat the first two) and three or more
+/// harmonics leave the motion some freedom.
 fn constraints(schedule: &Schedule, pause_at: f64) -> Vec<Vec<f64>> {
     let n = schedule.harmonics;
     let w = |k: usize| schedule.omega * (k + 1) as f64;
-    let mut rows = vec![
+    // Velocity and acceleration at u of a and b (sin and cos terms).
+    let velocity = |u: f64| -> Vec<f64> {
         (0..2 * n)
-            .map(|i| if i < n { w(i) } else { 0.0 })
-            .collect::<Vec<f64>>(),
+            .map(|i| {
+                if i < n {
+                    w(i) * (w(i) * u).cos()
+                } else {
+                    -w(i - n) * (w(i - n) * u).sin()
+                }
+            })
+            .collect()
+    };
+    let acceleration = |u: f64| -> Vec<f64> {
         (0..2 * n)
-            .map(|i| if i < n { 0.0 } else { w(i - n).powi(2) })
-            .collect(),
-    ];
+            .map(|i| {
+                if i < n {
+                    w(i).powi(2) * (w(i) * u).sin()
+                } else {
+                    w(i - n).powi(2) * (w(i - n) * u).cos()
+                }
+            })
+            .collect()
+    };
+    let mut rows = vec![velocity(0.0), acceleration(0.0)];
     let phase = (pause_at * schedule.omega / TAU).fract();
     if schedule.pause > 0.0 && phase > 1e-6 && phase < 1.0 - 1e-6 && n >= 3 {
-        let sc = |k: usize| (w(k) * pause_at).sin_cos();
-        rows.push(
-            (0..2 * n)
-                .map(|i| {
-                    if i < n {
-                        w(i) * sc(i).1
-                    } else {
-                        -w(i - n) * sc(i - n).0
-                    }
-                })
-                .collect(),
-        );
-        rows.push(
-            (0..2 * n)
-                .map(|i| {
-                    if i < n {
-                        w(i).powi(2) * sc(i).0
-                    } else {
-                        w(i - n).powi(2) * sc(i - n).1
-                    }
-                })
-                .collect(),
-        );
+        rows.push(velocity(pause_at));
+        rows.push(acceleration(pause_at));
     }
     rows
 }
@@ -232,20 +343,14 @@ pub struct Bounds {
 /// peaks between samples, a little higher, stay inside.
 pub const KINEMATIC_SHARE: f64 = 0.98;
 
-/// The largest factor (at most `cap`) by which `series` can be scaled and
-/// keep joint `j`'s position, velocity and acceleration limits at `times`.
-pub fn kinematic_scale(
-    series: &JointSeries,
-    schedule: &Schedule,
-    times: &[f64],
-    bounds: &Bounds,
-    j: usize,
-) -> f64 {
+/// [`KINEMATIC_SHARE`] of the largest factor by which a joint's motion
+/// about `centre`, sampled as `track`, can be scaled and keep joint `j`'s
+/// position, velocity and acceleration limits at the track's samples.
+pub fn kinematic_scale(track: &Track, centre: f64, bounds: &Bounds, j: usize) -> f64 {
     let (lo, hi) = bounds.position[j];
     let (mut up, mut down, mut v, mut a) = (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
-    for &t in times {
-        let (q, qd, qdd) = series.eval(schedule, t);
-        let d = q - series.centre;
+    for ((q, qd), qdd) in track.q.iter().zip(&track.qd).zip(&track.qdd) {
+        let d = q - centre;
         up = up.max(d);
         down = down.max(-d);
         v = v.max(qd.abs());
@@ -259,8 +364,8 @@ pub fn kinematic_scale(
         }
     };
     let factor = [
-        ratio(hi - series.centre, up),
-        ratio(series.centre - lo, down),
+        ratio(hi - centre, up),
+        ratio(centre - lo, down),
         ratio(bounds.velocity[j], v),
         ratio(bounds.acceleration[j], a),
     ]
@@ -343,6 +448,27 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_basis_gives_what_the_series_gives() {
+        let s = Schedule::new(20.0, (1.0, 3.0), None, 5, 3);
+        let raw: Vec<f64> = (0..s.per_joint())
+            .map(|k| (k as f64 * 0.71).cos())
+            .collect();
+        let times = s.grid(500);
+        let basis = Basis::new(&s, &times);
+        for j in 0..3 {
+            let series = JointSeries::from_raw(&raw, (-1.0, 2.0), &s, j);
+            let (fast, direct) = (basis.track(j, &series), Track::new(&series, &s, &times));
+            for (x, y) in [
+                (&fast.q, &direct.q),
+                (&fast.qd, &direct.qd),
+                (&fast.qdd, &direct.qdd),
+            ] {
+                assert!(x.iter().zip(y).all(|(a, b)| (a - b).abs() < 1e-12));
+            }
+        }
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
 
@@ -362,7 +488,8 @@ mod tests {
             };
             let series = JointSeries::from_raw(&raw, bounds.position[0], &s, 1);
             let grid = s.grid(1200);
-            let scaled = series.scaled(kinematic_scale(&series, &s, &grid, &bounds, 0));
+            let f = kinematic_scale(&Track::new(&series, &s, &grid), series.centre, &bounds, 0);
+            let scaled = series.scaled(f);
             for &t in &grid {
                 let (q, qd, qdd) = scaled.eval(&s, t);
                 proptest::prop_assert!((-0.3..=2.0).contains(&q) && qd.abs() <= 0.8 && qdd.abs() <= 1.5);
@@ -386,7 +513,7 @@ mod tests {
         let raw: Vec<f64> = (0..s.per_joint()).map(|k| 3.0 * (k as f64).cos()).collect();
         let series = JointSeries::from_raw(&raw, bounds.position[0], &s, 0);
         let grid = s.grid(4000);
-        let f = kinematic_scale(&series, &s, &grid, &bounds, 0);
+        let f = kinematic_scale(&Track::new(&series, &s, &grid), series.centre, &bounds, 0);
         let scaled = series.scaled(f);
         for &t in &grid {
             let (q, qd, qdd) = scaled.eval(&s, t);

@@ -71,6 +71,14 @@ pub fn from_diagnosis(text: &str, source: &str, links: &[String]) -> Result<Vec<
     Ok(names)
 }
 
+/// Whether any of the weighted parameters needs samples at rest: a torque
+/// offset or direction-dependent friction, which only rests tell apart.
+pub fn needs_rests(names: &[String]) -> bool {
+    names
+        .iter()
+        .any(|n| n.starts_with("offset") || n.starts_with("coulomb_asymmetry"))
+}
+
 /// "kind on joint N" or "kind of link N" from an effect object.
 fn effect_label(effect: &Value) -> String {
     let kind = effect
@@ -157,6 +165,14 @@ mod tests {
         let json = r#"{"effects": [], "notes": ["inertial_error of link `link3`: the mass is poorly determined by these data"]}"#;
         let names = from_diagnosis(json, "d.json", &links()).unwrap();
         assert_eq!(names, vec!["m3", "mx3", "my3", "mz3"]);
+    }
+
+    #[test]
+    fn only_an_offset_or_direction_dependent_friction_needs_rests() {
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert!(needs_rests(&names(&["m3", "offset2"])));
+        assert!(needs_rests(&names(&["coulomb_asymmetry1"])));
+        assert!(!needs_rests(&names(&["m3", "mx3", "coulomb2", "viscous1"])));
     }
 
     #[test]
