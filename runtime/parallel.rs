@@ -5,9 +5,17 @@
 /// `f` of every item, in order, on up to `available_parallelism` threads
 /// (contiguous chunks; one thread for fewer than two items).
 pub fn map_in_order<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |p| p.get())
-        .min(items.len());
+    let workers = std::thread::available_parallelism().map_or(1, |p| p.get());
+    map_in_order_on(items, f, workers)
+}
+
+/// [`map_in_order`] on at most `workers` threads.
+pub fn map_in_order_on<T: Sync, R: Send>(
+    items: &[T],
+    f: impl Fn(&T) -> R + Sync,
+    workers: usize,
+) -> Vec<R> {
+    let workers = workers.min(items.len());
     if workers <= 1 {
         return items.iter().map(f).collect();
     }
@@ -36,5 +44,14 @@ mod tests {
         let squares = map_in_order(&items, |x| x * x);
         assert_eq!(squares, items.iter().map(|x| x * x).collect::<Vec<_>>());
         assert!(map_in_order(&[] as &[u64], |x| *x).is_empty());
+    }
+
+    #[test]
+    fn the_thread_count_does_not_change_the_results() {
+        let f = |x: &f64| x.sin() * 0.5 * x;
+        let items: Vec<f64> = (0..9).map(f64::from).collect();
+        let one = map_in_order_on(&items, f, 1);
+        assert_eq!(one, map_in_order_on(&items, f, 2));
+        assert_eq!(one, map_in_order_on(&items, f, 4));
     }
 }

@@ -209,31 +209,9 @@ fn best_first(values: &[f64]) -> Vec<usize> {
     order
 }
 
-/// The costs of `points`, in order, on up to two threads.
+/// The costs of `points`, in order, on the machine's cores.
 fn evaluate(cost: &(dyn Fn(&[f64]) -> f64 + Sync), points: &[Vec<f64>]) -> Vec<f64> {
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |p| p.get())
-        .clamp(1, 2);
-    evaluate_on(cost, points, workers)
-}
-
-/// The costs of `points`, in order, on `workers` threads.
-fn evaluate_on(
-    cost: &(dyn Fn(&[f64]) -> f64 + Sync),
-    points: &[Vec<f64>],
-    workers: usize,
-) -> Vec<f64> {
-    let chunk = points.len().div_ceil(workers).max(1);
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = points
-            .chunks(chunk)
-            .map(|part| scope.spawn(move || part.iter().map(|x| cost(x)).collect::<Vec<f64>>()))
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap_or_else(|_| vec![f64::INFINITY; chunk]))
-            .collect()
-    })
+    crate::parallel::map_in_order(points, |x| cost(x))
 }
 
 #[cfg(test)]
@@ -316,15 +294,6 @@ mod tests {
             minimize(both(&f), 4, 2, 11, BUDGET),
             minimize(both(&f), 4, 2, 11, BUDGET)
         );
-    }
-
-    #[test]
-    fn the_thread_count_does_not_change_the_costs_or_their_order() {
-        let f = |x: &[f64]| x[0].sin() * x[1];
-        let points: Vec<Vec<f64>> = (0..9).map(|k| vec![k as f64, 0.5 * k as f64]).collect();
-        let one = evaluate_on(&f, &points, 1);
-        assert_eq!(one, evaluate_on(&f, &points, 2));
-        assert_eq!(one, evaluate_on(&f, &points, 4));
     }
 
     #[test]
