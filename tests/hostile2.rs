@@ -17,26 +17,23 @@ fn refused(run: &Output, needle: &str) {
 
 /// Runs `sdnn` with standard output on `/dev/full` (every write fails with ENOSPC).
 fn to_full_device(args: &[&str]) -> Output {
-    let full = std::fs::OpenOptions::new()
-        .write(true)
-        .open("/dev/full")
-        .expect("/dev/full");
-    Command::new(env!("CARGO_BIN_EXE_sdnn"))
-        .args(args)
-        .stdout(Stdio::from(full))
-        .output()
-        .expect("run sdnn")
+    on_full_device(args, |command, full| command.stdout(full))
 }
 
 /// Runs `sdnn` with standard error on `/dev/full`: its messages are lost.
 fn errors_to_full_device(args: &[&str]) -> Output {
+    on_full_device(args, |command, full| command.stderr(full))
+}
+
+/// Runs `sdnn` with the stream `attach` sets on `/dev/full`.
+fn on_full_device(args: &[&str], attach: fn(&mut Command, Stdio) -> &mut Command) -> Output {
     let full = std::fs::OpenOptions::new()
         .write(true)
         .open("/dev/full")
         .expect("/dev/full");
-    Command::new(env!("CARGO_BIN_EXE_sdnn"))
-        .args(args)
-        .stderr(Stdio::from(full))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_sdnn"));
+    command.args(args);
+    attach(&mut command, Stdio::from(full))
         .output()
         .expect("run sdnn")
 }
