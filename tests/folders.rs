@@ -210,12 +210,16 @@ fn simulate_leaves_no_stale_or_mixed_recordings() {
         "kinova_gen3_lite_3dof",
         "--duration",
         "2",
-        "--generations",
+        "--rounds",
         "1",
         "--out",
         s(&plan),
     ]);
-    assert!(designed.status.success());
+    assert!(
+        designed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&designed.stderr)
+    );
     let planned = sdnn(&["simulate", "--trajectory", s(&plan), "--out", s(&out)]);
     let stderr = String::from_utf8_lossy(&planned.stderr);
     assert_eq!(planned.status.code(), Some(2), "{stderr}");
