@@ -98,6 +98,7 @@ mod sanity;
 mod search;
 mod select;
 mod settings;
+mod shape;
 mod stacked;
 mod text;
 mod uncertainty;

@@ -3,12 +3,13 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::candidate::{Candidate, Shape, label, physically_consistent, width};
+use super::candidate::{Candidate, Shape, label, width};
 use super::diagnosis::{Effect, Regimes, ResidualSamples};
 use super::fit::fit;
 use super::heldout::cv_mse_per_joint;
 use super::kind::Kind;
 use super::moments::Moments;
+use super::shape::physically_consistent;
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 

@@ -10,13 +10,12 @@ use serde::Serialize;
 
 use nalgebra::DMatrix;
 
-use super::candidate::{
-    Candidate, Shape, label, physically_consistent, pseudo_inertia_margin, width,
-};
+use super::candidate::{Candidate, Shape, label, width};
 use super::fit::fit;
 use super::heldout::cv_mse_per_joint;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
+use super::shape::{physically_consistent, pseudo_inertia_margin};
 
 /// Column norm, relative to the largest of the link's, below which a column
 /// is rounding.
@@ -271,7 +270,7 @@ fn note(candidate: &Candidate, free: &Unconstrained, model_physical: bool, bette
 mod tests {
     use nalgebra::Vector3;
 
-    use super::super::candidate::point_mass;
+    use super::super::shape::point_mass;
     use super::*;
 
     const MASS: [f64; 10] = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
