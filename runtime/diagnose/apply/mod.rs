@@ -29,14 +29,17 @@ pub fn apply_to_text(
         .trim_start_matches('\u{feff}')
         .parse()
         .context("the description is not valid TOML")?;
+    let scales = crate::corrections::Corrections::diagnosed(diagnosis).scales;
     for effect in &diagnosis.effects {
         // On a joint whose logged torque is s times the applied one, the
         // fit's joint effects are in logged units: evaluate divides the
         // logged torque by s (`--torque-scale`), so the TOML takes them
         // divided by s, and the corrected recording and the model agree.
-        let per_scale = effect
-            .joint
-            .map_or(1.0, |j| 1.0 / sensor_scale(diagnosis, j));
+        let per_scale: f64 = scales
+            .iter()
+            .filter(|&&(j, _)| Some(j) == effect.joint)
+            .map(|(_, s)| 1.0 / s)
+            .product();
         let value = |name: &str| {
             effect
                 .parameters
@@ -178,20 +181,6 @@ pub fn apply_to_text(
         text.insert(0, '\u{feff}');
     }
     Ok(text)
-}
-
-/// The scale a diagnosis found on joint `joint`'s logged torque (1: none).
-fn sensor_scale(diagnosis: &Diagnosis, joint: usize) -> f64 {
-    diagnosis
-        .effects
-        .iter()
-        .filter(|e| e.kind == Kind::TorqueScale && e.joint == Some(joint))
-        .filter_map(|e| {
-            e.parameters
-                .get("scale")
-                .and_then(serde_json::Value::as_f64)
-        })
-        .product()
 }
 
 /// Adds a spring k (q - rest) to a joint's: the stiffnesses add, the rest
