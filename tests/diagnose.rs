@@ -25,7 +25,12 @@ pub(crate) fn diagnose_auto(recordings: &[Trajectory]) -> Diagnosis {
 /// Measured recordings of `truth` tracking the nominal model's references
 /// (20 s at 1 kHz each, sensor noise), before preprocessing.
 pub(crate) fn raw_recordings(truth: &Model, count: u64) -> Vec<Trajectory> {
-    let nominal = sdnn::model(NOMINAL).unwrap();
+    recordings_of(NOMINAL, truth, count)
+}
+
+/// [`raw_recordings`] of another nominal model.
+pub(crate) fn recordings_of(model: &str, truth: &Model, count: u64) -> Vec<Trajectory> {
+    let nominal = sdnn::model(model).unwrap();
     let waypoints = WaypointConfig {
         limits: study::limits(nominal, &StudyConfig::default()).unwrap(),
         ..WaypointConfig::default()

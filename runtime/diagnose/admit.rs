@@ -11,6 +11,7 @@ use super::gain::Gain;
 use super::kind::Kind;
 use super::moments::Moments;
 use super::uncertainty::{fit_robust, robust_quantity};
+use super::whole::{PHYSICAL_LOSS, named_body};
 
 /// A link's fitted mass beyond this factor of its modelled mass (either
 /// way) is not taken as an inertial error of that link.
@@ -37,6 +38,9 @@ pub(super) fn physical(
         Kind::TorqueOffset | Kind::CoulombAsymmetry | Kind::TorqueRipple => return Ok(()),
         Kind::TorqueScale | Kind::TorqueDelay | Kind::GravityDirection => {
             return plausible_data_effect(candidate, values, &at, &cut);
+        }
+        Kind::InertialError if matches!(candidate.shape, Shape::Whole { .. }) => {
+            return plausible_body(candidate, values, reach, &at, &cut);
         }
         Kind::InertialError if matches!(candidate.shape, Shape::Moment { .. }) => {
             let Shape::Moment { base_mass, .. } = candidate.shape else {
@@ -117,6 +121,49 @@ pub(super) fn physical(
         "{at}: the data fit {kind} = {value:.4}, a negative value (it {cut}): {meaning}; \
          not named"
     ))
+}
+
+/// Whether a whole-body fit names a plausible body of its link: reaching
+/// the nearest physical body gives up at most [`PHYSICAL_LOSS`] of the
+/// torque the fit explains, its mass stays within [`MASS_FACTOR`] of the
+/// model's and its centre of mass within the arm's size of the origin.
+fn plausible_body(
+    candidate: &Candidate,
+    values: &[f64],
+    reach: f64,
+    at: &str,
+    cut: &str,
+) -> Result<(), String> {
+    let Shape::Whole { basis, gram } = &candidate.shape else {
+        return Ok(());
+    };
+    let modelled = candidate.modelled[0];
+    let (body, lost) = named_body(&candidate.modelled, basis, gram, values);
+    if lost > PHYSICAL_LOSS {
+        return Err(format!(
+            "{at}: the data fit a change of the link's ten inertial parameters that no physical \
+             body makes (the nearest body gives up {:.0}% of the torque it explains): the trace \
+             of another effect; not named (it {cut})",
+            100.0 * lost
+        ));
+    }
+    let mass = body[0];
+    if modelled > 0.0 && !(modelled / MASS_FACTOR..=modelled * MASS_FACTOR).contains(&mass) {
+        return Err(format!(
+            "{at}: the data fit a body of {mass:.4} kg for a link modelled at {modelled:.4} kg, \
+             beyond a factor of {MASS_FACTOR}: not a plausible correction of this link but the \
+             trace of another effect; not named (it {cut})"
+        ));
+    }
+    let distance = Vector3::new(body[1], body[2], body[3]).norm() / mass;
+    if distance > reach {
+        return Err(format!(
+            "{at}: the data fit a body whose centre of mass lies {distance:.2} m from the link \
+             origin (the arm's size is {reach:.2} m): not a physical correction; not named (it \
+             {cut})"
+        ));
+    }
+    Ok(())
 }
 
 /// Largest torque-scale error (either way), delay (s) and base tilt (rad)
@@ -238,6 +285,8 @@ pub(super) fn significant(
             (0..4).any(|k| t(k, nominal[k]) > min_t)
                 || (0..3).any(|i| change[i].abs() > min_t * change_se[i])
         }
+        // Some combination of the link's parameters changed.
+        (Kind::InertialError, Shape::Whole { .. }) => (0..w).any(|k| t(k, 0.0) > min_t),
         (Kind::InertialError, Shape::Moment { base_moment, .. }) => {
             (0..3).any(|k| t(k, base_moment[k]) > min_t)
         }

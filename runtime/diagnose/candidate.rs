@@ -108,7 +108,8 @@ pub(super) struct Columns {
 /// logging the torque late; a signal's rate is uncorrelated with it, so the
 /// measured rate carries every effect the logged torque holds without
 /// regressing the residual on itself) and a tilted base; per link a
-/// payload (the last) or an inertial error.
+/// payload (the last) or an inertial error: of its mass and COM, or of the
+/// whole body (`super::whole`).
 pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Vec<Candidate> {
     let n = data.dof;
     let Columns {
@@ -235,6 +236,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         if k + 1 == n {
             list.push(payload_candidate(k, link, columns.clone()));
         }
+        list.extend(super::whole::whole_candidate(k, link, &columns));
         list.push(link_candidate(k, link, columns));
     }
     list

@@ -57,14 +57,6 @@ pub(super) fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
     DVector::from_fn(k, |i, _| x[i] / d[i])
 }
 
-/// Whether a shape's coefficients are its parameters.
-fn linear(shape: &Shape) -> bool {
-    matches!(
-        shape,
-        Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. }
-    )
-}
-
 /// Column coefficients and their Jacobian for concatenated parameters.
 pub(super) fn coefficients(
     candidates: &[Candidate],
@@ -111,7 +103,7 @@ pub(super) fn fit(
     let mut at = 0;
     for &c in selected {
         match candidates[c].shape {
-            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } | Shape::Whole { .. } => {
                 start_columns.extend(at..at + candidates[c].columns.len())
             }
             // A small tilt barely changes the gravity along the model's.
@@ -133,7 +125,7 @@ pub(super) fn fit(
                 theta.extend(x0.rows(at, 2).iter());
                 at += 2;
             }
-            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } | Shape::Whole { .. } => {
                 let count = candidates[c].columns.len();
                 theta.extend(x0.rows(at, count).iter());
                 at += count;
@@ -213,7 +205,7 @@ pub(super) fn descend(
     let objective = |coefficients: &DVector<f64>| {
         coefficients.dot(&(a * coefficients)) - 2.0 * coefficients.dot(b)
     };
-    let nonlinear = selected.iter().any(|&c| !linear(&candidates[c].shape));
+    let nonlinear = selected.iter().any(|&c| !candidates[c].shape.is_linear());
     let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
     let mut value = objective(&coef);
     let mut lambda = 1e-3;

@@ -104,6 +104,7 @@ mod text;
 mod uncertainty;
 mod unconstrained;
 mod unexplained;
+mod whole;
 
 use crate::dynamics::Dynamics;
 use crate::preprocess::Pipeline;

@@ -3,7 +3,7 @@
 //! a backward prune.
 
 use super::admit::{MASS_FACTOR, physical, searched_threshold, significant};
-use super::alternatives::{Alternative, broadest, payload_over_link_error, runners_up};
+use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::fit::{fit, identifiability, pseudo_solve};
 use super::gain::{Gain, relative_gain};
@@ -122,7 +122,8 @@ pub(super) fn select(
             .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
             .map(|best| {
                 let is_link = |c: usize| candidates[c].link.is_some();
-                broadest(&scored, best, &current, &is_link)
+                let broad = broadest(&scored, best, &current, &is_link);
+                fewer_parameters(candidates, &scored, broad)
             })
             .cloned();
         let Some((c, gain, mse)) = best else { break };
@@ -198,6 +199,17 @@ pub(super) fn select(
             ));
         }
     }
+    // Refusals at a step were judged beside the bodies named then.
+    swap_bodies(
+        m,
+        candidates,
+        &mut selected,
+        &unidentifiable,
+        &initial,
+        settings,
+    );
+    one_body(m, candidates, &mut selected, &unidentifiable, settings);
+    refused.extend(prune(m, candidates, &mut selected, &mut notes, settings));
     payload_over_link_error(m, candidates, &mut selected, &mut alternatives, settings);
     alternatives.retain(|a: &Alternative| selected.contains(&a.named));
     Selection {
@@ -261,10 +273,152 @@ pub(super) fn prune(
     }
 }
 
+/// A link's whole-body error chosen at a step yields to its mass-and-COM
+/// error when that leaves every joint's held-out MSE within [`NEAR`] of it:
+/// fewer parameters for the same structure.
+fn fewer_parameters<'a>(
+    candidates: &[Candidate],
+    scored: &'a [(usize, Gain, Vec<f64>)],
+    chosen: &'a (usize, Gain, Vec<f64>),
+) -> &'a (usize, Gain, Vec<f64>) {
+    let whole = &candidates[chosen.0];
+    if !matches!(whole.shape, Shape::Whole { .. }) {
+        return chosen;
+    }
+    scored
+        .iter()
+        .find(|(c, _, mse)| {
+            let other = &candidates[*c];
+            other.kind == Kind::InertialError
+                && other.link == whole.link
+                && !matches!(other.shape, Shape::Whole { .. })
+                && mse.iter().zip(&chosen.2).all(|(o, w)| *o <= NEAR * w)
+        })
+        .unwrap_or(chosen)
+}
+
+/// Bodies (payloads, inertial errors) named while joint effects were
+/// still missing were chosen against residuals those dominated, where one
+/// link's error looks like its neighbour's and a whole-body error like a
+/// mass-and-COM one. Once the rest are named, each named body is chosen
+/// again among all bodies: the one that, in its place, cuts some joint's
+/// held-out MSE the most replaces it when that cut is at least half of
+/// `min_gain`, no joint is worse by more than [`NEAR`], and it is
+/// significant and physical (near ties go to fewer parameters).
+fn swap_bodies(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &mut [usize],
+    excluded: &[usize],
+    initial: &[f64],
+    settings: Settings,
+) {
+    let dof = initial.len();
+    let is_body = |c: usize| candidates[c].link.is_some();
+    for at in 0..selected.len() {
+        if !is_body(selected[at]) {
+            continue;
+        }
+        let others: Vec<usize> = (0..selected.len())
+            .filter(|&i| i != at)
+            .map(|i| selected[i])
+            .collect();
+        let current = cv_mse(m, dof, candidates, selected, Scoring::Fitted);
+        let open: Vec<usize> = (0..candidates.len())
+            .filter(|&c| {
+                is_body(c)
+                    && !selected.contains(&c)
+                    && !excluded.contains(&c)
+                    && admissible(candidates, c, &others)
+            })
+            .collect();
+        let scored: Vec<(usize, Gain, Vec<f64>)> = map_in_order(&open, |&c| {
+            let mut trial = others.clone();
+            trial.push(c);
+            let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
+            (c, relative_gain(&current, &mse, initial), mse)
+        })
+        .into_iter()
+        .filter(|(_, gain, _)| gain.share.is_finite())
+        .collect();
+        let Some(best) = scored.iter().max_by(|a, b| a.1.share.total_cmp(&b.1.share)) else {
+            continue;
+        };
+        let (c, gain, mse) = fewer_parameters(candidates, &scored, best);
+        // A replacement adds no parameters' worth of effects: half the bar,
+        // and no joint clearly worse.
+        let worse = mse.iter().zip(&current).any(|(t, n)| *t > NEAR * n);
+        if gain.share < 0.5 * settings.min_gain || worse {
+            continue;
+        }
+        let mut trial = others;
+        trial.push(*c);
+        let admitted = fit(m, candidates, &trial, |_| true)
+            .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
+            .is_some_and(|v| physical(&candidates[*c], &v, Gain::NONE, settings.reach).is_ok());
+        if admitted {
+            selected[at] = *c;
+        }
+    }
+}
+
+/// Several named bodies whose errors one body explains as well (every
+/// joint's held-out MSE within [`NEAR`]) are that one body: a wholly wrong
+/// link acts partly through combinations it shares with its neighbours
+/// (the base parameters regroup them), so forward selection, which names
+/// the neighbour's mass first, ends with two bodies for one error. Among
+/// the single bodies that pass, significant and physical, the one with the
+/// lowest summed held-out MSE.
+fn one_body(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &mut Vec<usize>,
+    excluded: &[usize],
+    settings: Settings,
+) {
+    let dof = m.xx.first().map_or(0, Vec::len);
+    let is_body = |c: usize| candidates[c].link.is_some();
+    if selected.iter().filter(|&&c| is_body(c)).count() < 2 {
+        return;
+    }
+    let current = cv_mse(m, dof, candidates, selected, Scoring::Fitted);
+    let others: Vec<usize> = selected.iter().copied().filter(|&c| !is_body(c)).collect();
+    let open: Vec<usize> = (0..candidates.len())
+        .filter(|&c| is_body(c) && !excluded.contains(&c))
+        .collect();
+    let passing: Vec<(usize, f64)> = map_in_order(&open, |&c| {
+        let mut trial = others.clone();
+        trial.push(c);
+        let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
+        let near = mse.iter().zip(&current).all(|(t, n)| *t <= NEAR * n);
+        let admitted = near
+            && fit(m, candidates, &trial, |_| true)
+                .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
+                .is_some_and(|v| physical(&candidates[c], &v, Gain::NONE, settings.reach).is_ok());
+        admitted.then(|| (c, mse.iter().sum::<f64>()))
+    })
+    .into_iter()
+    .flatten()
+    .collect();
+    if let Some(&(c, _)) = passing.iter().min_by(|a, b| a.1.total_cmp(&b.1)) {
+        let first = selected.iter().position(|&s| is_body(s)).unwrap_or(0);
+        selected.retain(|&s| !is_body(s));
+        selected.insert(first.min(selected.len()), c);
+    }
+}
+
 /// Whether a candidate may compete given the effects already named: an
-/// asymmetry of dry friction only on a joint that has Coulomb friction.
+/// asymmetry of dry friction only on a joint that has Coulomb friction, one
+/// inertial error per link.
 fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
     let candidate = &candidates[c];
+    if candidate.kind == Kind::InertialError
+        && selected.iter().any(|&s| {
+            candidates[s].kind == Kind::InertialError && candidates[s].link == candidate.link
+        })
+    {
+        return false;
+    }
     let Shape::Asymmetry { modelled_coulomb } = candidate.shape else {
         return true;
     };

@@ -44,12 +44,31 @@ pub(super) enum Shape {
         base_mass: f64,
         base_moment: Vector3<f64>,
     },
+    /// Linear: theta = the coefficients of the combinations of a link's ten
+    /// standard parameters that the data determine (`basis`, 10 x k: the
+    /// change of the ten per unit of each), the whole body corrected at
+    /// once (see [`super::whole`]); `gram` the Gram matrix of the link's
+    /// ten columns, the data's metric of a change of the ten.
+    Whole {
+        basis: DMatrix<f64>,
+        gram: DMatrix<f64>,
+    },
 }
 
 impl Shape {
+    /// Whether the coefficients are the parameters.
+    pub(super) fn is_linear(&self) -> bool {
+        matches!(
+            self,
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } | Shape::Whole { .. }
+        )
+    }
+
     pub(super) fn width(&self, columns: usize) -> usize {
         match self {
-            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => columns,
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } | Shape::Whole { .. } => {
+                columns
+            }
             Shape::Tilt { .. } => 2,
             Shape::Body { .. } => 4,
             Shape::Moment { .. } => 3,
@@ -59,7 +78,7 @@ impl Shape {
     /// Coefficients and their Jacobian at theta.
     pub(super) fn map(&self, theta: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
         match self {
-            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } | Shape::Whole { .. } => {
                 (theta.to_vec(), DMatrix::identity(theta.len(), theta.len()))
             }
             Shape::Tilt { gravity, .. } => {
@@ -110,7 +129,7 @@ impl Shape {
     /// Gauss-Newton crawls (the residuals of real data are not small).
     pub(super) fn curvature(&self, theta: &[f64], weights: &[f64]) -> DMatrix<f64> {
         match self {
-            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } => {
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. } | Shape::Whole { .. } => {
                 DMatrix::zeros(theta.len(), theta.len())
             }
             Shape::Tilt { gravity, .. } => {

@@ -16,6 +16,7 @@ use super::heldout::cv_mse_per_joint;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
 use super::shape::{physically_consistent, pseudo_inertia_margin};
+use super::whole::combinations;
 
 /// Column norm, relative to the largest of the link's, below which a column
 /// is rounding.
@@ -120,42 +121,7 @@ fn base_parameters(m: &Moments, candidates: &[Candidate], c: usize) -> Option<Ba
     }
     // A column at rounding level (a first moment along the only axis that
     // moves the link) is no information: it must not become a unit column.
-    let norms: Vec<f64> = (0..10).map(|i| gram[(i, i)].max(0.0).sqrt()).collect();
-    let largest_norm = norms.iter().copied().fold(0.0, f64::max);
-    let d: Vec<f64> = norms
-        .iter()
-        .map(|&n| if n > ROUNDING * largest_norm { n } else { 0.0 })
-        .collect();
-    let scaled = DMatrix::from_fn(10, 10, |i, j| {
-        if d[i] > 0.0 && d[j] > 0.0 {
-            gram[(i, j)] / (d[i] * d[j])
-        } else {
-            0.0
-        }
-    });
-    let eigen = crate::kernels::symmetric_eigen(scaled)?;
-    let largest = eigen.eigenvalues.max();
-    let kept: Vec<usize> = (0..10)
-        .filter(|&k| largest > 0.0 && eigen.eigenvalues[k] >= COLLINEAR * largest)
-        .collect();
-    let null: Vec<[f64; 10]> = (0..10)
-        .filter(|k| !kept.contains(k))
-        .map(|k| {
-            let v: [f64; 10] = std::array::from_fn(|i| {
-                let x = eigen.eigenvectors[(i, k)];
-                if d[i] > 0.0 { x / d[i] } else { x }
-            });
-            let top = v.iter().fold(0.0_f64, |t, x| t.max(x.abs()));
-            v.map(|x| if top > 0.0 { x / top } else { 0.0 })
-        })
-        .collect();
-    let basis = DMatrix::from_fn(10, kept.len(), |i, l| {
-        if d[i] > 0.0 {
-            eigen.eigenvectors[(i, kept[l])] / d[i]
-        } else {
-            0.0
-        }
-    });
+    let (basis, null) = combinations(&gram, COLLINEAR, ROUNDING)?;
     // Old moment columns -> new: the ten replaced by the k combinations.
     let p = m.xx.first()?.first()?.nrows();
     let k = basis.ncols();

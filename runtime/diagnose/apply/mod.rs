@@ -67,6 +67,25 @@ pub fn apply_to_text(
                 let parent = effect.link.as_deref().unwrap_or(last_link);
                 add_payload(&mut doc, mass, &com, parent)?;
             }
+            (Kind::InertialError, _) if effect.parameters.contains_key("inertia") => {
+                let link = effect
+                    .link
+                    .as_deref()
+                    .context("inertial error without a link")?;
+                let body = |prefix: &str| -> Result<[f64; 10]> {
+                    let mass = value(&format!("{prefix}mass")).context("missing mass")?;
+                    let com = numbers(&effect.parameters, &format!("{prefix}com"), 3)?;
+                    let inertia = numbers(&effect.parameters, &format!("{prefix}inertia"), 6)?;
+                    Ok(body::standard(
+                        mass,
+                        std::array::from_fn(|k| com[k]),
+                        std::array::from_fn(|k| inertia[k]),
+                    ))
+                };
+                let (named, nominal) = (body("")?, body("nominal_")?);
+                let change = std::array::from_fn(|k| named[k] - nominal[k]);
+                body::correct_whole(link_table(&mut doc, link)?, link, &change)?;
+            }
             (Kind::InertialError, _) => {
                 let link = effect
                     .link
@@ -300,6 +319,30 @@ fn keep_decor(old: &mut Value, mut value: Value) {
     *old = value;
 }
 
+/// A parameter of `count` numbers.
+fn numbers(
+    parameters: &serde_json::Map<String, serde_json::Value>,
+    name: &str,
+    count: usize,
+) -> Result<Vec<f64>> {
+    let values: Option<Vec<f64>> = parameters
+        .get(name)
+        .and_then(serde_json::Value::as_array)
+        .filter(|v| v.len() == count)
+        .and_then(|v| v.iter().map(serde_json::Value::as_f64).collect());
+    values.with_context(|| format!("`{name}` must be {count} numbers"))
+}
+
+/// The `[[links]]` table of `link`.
+fn link_table<'a>(doc: &'a mut DocumentMut, link: &str) -> Result<&'a mut Table> {
+    doc.get_mut("links")
+        .and_then(Item::as_array_of_tables_mut)
+        .context("the description has no [[links]]")?
+        .iter_mut()
+        .find(|t| t.get("name").and_then(Item::as_str) == Some(link))
+        .with_context(|| format!("no link named `{link}` in the description"))
+}
+
 /// A 3-vector parameter whose entries may be null (not identifiable).
 fn vector(
     parameters: &serde_json::Map<String, serde_json::Value>,
@@ -328,14 +371,7 @@ fn correct_link(
     nominal_mass: f64,
     nominal_com: &[f64],
 ) -> Result<()> {
-    let links = doc
-        .get_mut("links")
-        .and_then(Item::as_array_of_tables_mut)
-        .context("the description has no [[links]]")?;
-    let table = links
-        .iter_mut()
-        .find(|t| t.get("name").and_then(Item::as_str) == Some(link))
-        .with_context(|| format!("no link named `{link}` in the description"))?;
+    let table = link_table(doc, link)?;
     let own_mass = table.get("mass").and_then(number).unwrap_or(0.0);
     let own_com: Vec<f64> = match table.get("com").and_then(Item::as_array) {
         Some(a) => a.iter().map(|v| value_number(v).unwrap_or(0.0)).collect(),
@@ -521,5 +557,6 @@ fn changed_lines(old: &str, new: &str) -> Vec<String> {
     out
 }
 
+mod body;
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,502 @@
+//! Whole-body inertial errors: a link's ten standard parameters corrected
+//! at once. The data determine only some combinations of the ten (its base
+//! parameters: the first link, turning about one axis, shows only its
+//! inertia about that axis), so the candidate fits those combinations and
+//! nothing else; the body it names is the physical one (pseudo-inertia
+//! positive semi-definite) nearest to the fit in the data's own metric,
+//! the directions the data do not see kept as close to the model as a
+//! physical body allows.
+
+use nalgebra::{DMatrix, DVector, Matrix4};
+use serde_json::{Map, Value, json};
+
+use super::candidate::{Candidate, label};
+use super::kind::Kind;
+use super::shape::{Shape, physically_consistent};
+use super::stacked::Link;
+
+/// Relative eigenvalue of the link's unit-diagonal Gram matrix below which
+/// a combination of its parameters is not fitted: its column is under 1%
+/// of the strongest combination's, so the data would fit it with noise.
+pub const WHOLE_COLLINEAR: f64 = 1e-4;
+
+/// A whole-body fit that moves the torques it explains by more than this
+/// share (in the data's metric) to reach a physical body is not a body.
+pub const PHYSICAL_LOSS: f64 = 0.25;
+
+/// The ten standard parameters, in the order of `shape::point_mass`.
+pub const PARAMETERS: [&str; 10] = [
+    "mass", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
+];
+
+const COMBINATIONS: [&str; 10] = [
+    "combination_1",
+    "combination_2",
+    "combination_3",
+    "combination_4",
+    "combination_5",
+    "combination_6",
+    "combination_7",
+    "combination_8",
+    "combination_9",
+    "combination_10",
+];
+
+/// The Gram matrix of a link's ten columns.
+fn gram_of(columns: &[DVector<f64>]) -> DMatrix<f64> {
+    DMatrix::from_fn(10, 10, |i, j| columns[i].dot(&columns[j]))
+}
+
+/// The unit-diagonal scaling of a Gram matrix: column norms, zero for a
+/// column at rounding level (`rounding` times the largest norm).
+fn column_norms(gram: &DMatrix<f64>, rounding: f64) -> Vec<f64> {
+    let norms: Vec<f64> = (0..10).map(|i| gram[(i, i)].max(0.0).sqrt()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    norms
+        .iter()
+        .map(|&n| if n > rounding * largest { n } else { 0.0 })
+        .collect()
+}
+
+/// Combinations of ten parameters that a Gram matrix determines:
+/// eigenvectors of its unit-diagonal scaling with eigenvalues at least
+/// `threshold` times the largest, as changes of the ten (10 x k), and the
+/// directions it does not see (each scaled to a largest entry of 1).
+pub(super) fn combinations(
+    gram: &DMatrix<f64>,
+    threshold: f64,
+    rounding: f64,
+) -> Option<(DMatrix<f64>, Vec<[f64; 10]>)> {
+    let d = column_norms(gram, rounding);
+    let scaled = DMatrix::from_fn(10, 10, |i, j| {
+        if d[i] > 0.0 && d[j] > 0.0 {
+            gram[(i, j)] / (d[i] * d[j])
+        } else {
+            0.0
+        }
+    });
+    let eigen = crate::kernels::symmetric_eigen(scaled)?;
+    let largest = eigen.eigenvalues.max();
+    let kept: Vec<usize> = (0..10)
+        .filter(|&k| largest > 0.0 && eigen.eigenvalues[k] >= threshold * largest)
+        .collect();
+    let null = (0..10)
+        .filter(|k| !kept.contains(k))
+        .map(|k| {
+            let v: [f64; 10] = std::array::from_fn(|i| {
+                let x = eigen.eigenvectors[(i, k)];
+                if d[i] > 0.0 { x / d[i] } else { x }
+            });
+            let top = v.iter().fold(0.0_f64, |t, x| t.max(x.abs()));
+            v.map(|x| if top > 0.0 { x / top } else { 0.0 })
+        })
+        .collect();
+    let basis = DMatrix::from_fn(10, kept.len(), |i, l| {
+        if d[i] > 0.0 {
+            eigen.eigenvectors[(i, kept[l])] / d[i]
+        } else {
+            0.0
+        }
+    });
+    Some((basis, null))
+}
+
+/// The whole-body inertial error of link `k`: its ten columns replaced by
+/// the combinations the data determine. `None` when they determine none.
+pub(super) fn whole_candidate(
+    k: usize,
+    link: &Link,
+    columns: &[DVector<f64>],
+) -> Option<Candidate> {
+    let gram = gram_of(columns);
+    let (basis, _) = combinations(&gram, WHOLE_COLLINEAR, 1e-9)?;
+    if basis.ncols() == 0 {
+        return None;
+    }
+    let combined = (0..basis.ncols())
+        .map(|l| {
+            (0..10).fold(columns[0].scale(0.0), |z, i| {
+                z + &columns[i] * basis[(i, l)]
+            })
+        })
+        .collect::<Vec<_>>();
+    Some(Candidate {
+        kind: Kind::InertialError,
+        joint: None,
+        link: Some((k, link.name.clone())),
+        modelled: link.parameters,
+        names: COMBINATIONS[..basis.ncols()].to_vec(),
+        columns: combined,
+        applied: None,
+        shape: Shape::Whole { basis, gram },
+        settings: Vec::new(),
+        searched: 1,
+    })
+}
+
+/// The body a whole-body fit names: the physical body nearest to the
+/// fitted one (the model's parameters plus `basis * combinations`) in the
+/// metric of the data (`gram`), and the share of the fitted change's
+/// torques that reaching it gives up (0 when the fit is physical).
+pub(super) fn named_body(
+    modelled: &[f64; 10],
+    basis: &DMatrix<f64>,
+    gram: &DMatrix<f64>,
+    combinations: &[f64],
+) -> ([f64; 10], f64) {
+    let change = basis * DVector::from_column_slice(combinations);
+    let fitted: [f64; 10] = std::array::from_fn(|i| modelled[i] + change[i]);
+    let body = nearest_body(&fitted, modelled, gram);
+    let moved = DVector::from_fn(10, |i, _| body[i] - fitted[i]);
+    let signal = change.dot(&(gram * &change));
+    let lost = moved.dot(&(gram * &moved));
+    let share = if signal > 0.0 { lost / signal } else { 0.0 };
+    (body, share)
+}
+
+/// A body's mass, centre of mass and inertia about it ([ixx, ixy, ixz,
+/// iyy, iyz, izz], link axes) from its standard parameters.
+pub fn about_com(p: &[f64; 10]) -> (f64, [f64; 3], [f64; 6]) {
+    let m = p[0];
+    let c = if m.abs() > 0.0 {
+        [p[1] / m, p[2] / m, p[3] / m]
+    } else {
+        [0.0; 3]
+    };
+    let shifted = super::shape::point_mass(-m, &nalgebra::Vector3::from(c));
+    let i: [f64; 10] = std::array::from_fn(|k| p[k] + shifted[k]);
+    (m, c, [i[4], i[5], i[7], i[6], i[8], i[9]])
+}
+
+/// The report's parameters of a named whole-body error (`values`: each
+/// combination's value and 95% half-width): the named body's mass, COM and
+/// inertia about the COM beside the model's, the combinations with their
+/// intervals, and which standard parameters the data determine; a note
+/// says that the rest are the model's.
+pub(super) fn describe(
+    candidate: &Candidate,
+    values: &[(f64, f64)],
+    parameters: &mut Map<String, Value>,
+    ci95: &mut Map<String, Value>,
+    notes: &mut Vec<String>,
+) {
+    let Shape::Whole { basis, gram } = &candidate.shape else {
+        return;
+    };
+    let fitted: Vec<f64> = values.iter().map(|v| v.0).collect();
+    let (body, lost) = named_body(&candidate.modelled, basis, gram, &fitted);
+    let (mass, com, inertia) = about_com(&body);
+    let (nominal_mass, nominal_com, nominal_inertia) = about_com(&candidate.modelled);
+    let known = determined(gram);
+    parameters.insert("mass".into(), json!(mass));
+    parameters.insert("com".into(), json!(com));
+    parameters.insert("inertia".into(), json!(inertia));
+    parameters.insert("nominal_mass".into(), json!(nominal_mass));
+    parameters.insert("nominal_com".into(), json!(nominal_com));
+    parameters.insert("nominal_inertia".into(), json!(nominal_inertia));
+    parameters.insert("identifiable_combinations".into(), json!(values.len()));
+    parameters.insert("determined".into(), json!(known));
+    parameters.insert("combinations".into(), json!(fitted));
+    ci95.insert(
+        "combinations".into(),
+        json!(
+            values
+                .iter()
+                .map(|(v, h)| [v - h, v + h])
+                .collect::<Vec<_>>()
+        ),
+    );
+    parameters.insert(
+        "physically_consistent".into(),
+        json!(physically_consistent(&body)),
+    );
+    let seen = if known.is_empty() {
+        "none of the ten standard parameters alone".to_string()
+    } else {
+        known.join(", ")
+    };
+    notes.push(format!(
+        "{}: the whole body is corrected: these data determine {} combinations of the link's ten \
+         inertial parameters (alone: {seen}, about the link origin); the rest are the model's, \
+         moved only as far as a physical body needs{}",
+        label(candidate),
+        values.len(),
+        if lost > 1e-6 {
+            format!(
+                " (the nearest physical body gives up {:.1}% of the torque the free fit \
+                 explains)",
+                100.0 * lost
+            )
+        } else {
+            String::new()
+        }
+    ));
+}
+
+/// Natural scales of the ten parameters for a body of mass `m` and size
+/// `l`: kg, kg m, kg m^2.
+fn scales(m: f64, l: f64) -> [f64; 10] {
+    std::array::from_fn(|i| match i {
+        0 => m,
+        1..=3 => m * l,
+        _ => m * l * l,
+    })
+}
+
+/// Minimizes (p - fitted)^T G (p - fitted) + eps |(p - modelled) / s|^2
+/// over physical bodies p, parametrized by the log-Cholesky factor of the
+/// pseudo-inertia (Rucker and Wensing 2022: every parameter vector is a
+/// physical body and every body with a definite pseudo-inertia is
+/// reached), by damped Gauss-Newton steps. The small second term keeps
+/// what the data do not see at the model's values where the body allows.
+fn nearest_body(fitted: &[f64; 10], modelled: &[f64; 10], gram: &DMatrix<f64>) -> [f64; 10] {
+    let mass = modelled[0].abs().max(fitted[0].abs()).max(1e-3);
+    let size = (modelled[1].powi(2) + modelled[2].powi(2) + modelled[3].powi(2)).sqrt() / mass;
+    let s = scales(mass, size.max(0.05));
+    let curvature: f64 = (0..10).map(|i| gram[(i, i)] * s[i] * s[i]).sum::<f64>() / 10.0;
+    let eps = 1e-8 * curvature.max(f64::MIN_POSITIVE);
+    let weight = DMatrix::from_fn(10, 10, |i, j| {
+        gram[(i, j)] + if i == j { eps / (s[i] * s[i]) } else { 0.0 }
+    });
+    let pull = gram * DVector::from_column_slice(fitted)
+        + DVector::from_fn(10, |i, _| eps * modelled[i] / (s[i] * s[i]));
+    let objective = |p: &DVector<f64>| p.dot(&(&weight * p)) - 2.0 * p.dot(&pull);
+    let mut theta = log_cholesky(&start(fitted, modelled));
+    let (mut p, _) = parameters(&theta);
+    let mut value = objective(&p);
+    let mut damping = 1e-3;
+    for _ in 0..200 {
+        let (_, jacobian) = parameters(&theta);
+        let gradient = jacobian.transpose() * (&weight * &p - &pull);
+        let hessian = jacobian.transpose() * &weight * &jacobian;
+        let mut improved = false;
+        while damping < 1e12 {
+            let mut damped = hessian.clone();
+            for i in 0..10 {
+                damped[(i, i)] += damping * hessian[(i, i)].max(1e-300);
+            }
+            let Some(step) = damped.cholesky().map(|c| c.solve(&gradient)) else {
+                damping *= 10.0;
+                continue;
+            };
+            let trial = &theta - &step;
+            let (q, _) = parameters(&trial);
+            let v = objective(&q);
+            if v.is_finite() && v < value {
+                let small = (value - v) <= 1e-14 * value.abs().max(f64::MIN_POSITIVE);
+                (theta, p, value, improved) = (trial, q, v, !small);
+                damping = (damping / 10.0).max(1e-12);
+                break;
+            }
+            damping *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    std::array::from_fn(|i| p[i])
+}
+
+/// A start with a definite pseudo-inertia: the fitted body's, its
+/// eigenvalues raised to a small floor (the model's scale) where needed.
+fn start(fitted: &[f64; 10], modelled: &[f64; 10]) -> Matrix4<f64> {
+    let pseudo = pseudo_inertia(fitted);
+    let reference = pseudo_inertia(modelled)
+        .norm()
+        .max(pseudo.norm())
+        .max(1e-12);
+    let floor = 1e-6 * reference;
+    let eigen = pseudo.symmetric_eigen();
+    let raised = eigen.eigenvalues.map(|l| l.max(floor));
+    eigen.eigenvectors * Matrix4::from_diagonal(&raised) * eigen.eigenvectors.transpose()
+}
+
+/// [[tr(I)/2 E - I, h], [h^T, m]] of standard parameters p.
+pub(super) fn pseudo_inertia(p: &[f64; 10]) -> Matrix4<f64> {
+    let [m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] = *p;
+    let half = 0.5 * (ixx + iyy + izz);
+    Matrix4::new(
+        half - ixx,
+        -ixy,
+        -ixz,
+        hx,
+        -ixy,
+        half - iyy,
+        -iyz,
+        hy,
+        -ixz,
+        -iyz,
+        half - izz,
+        hz,
+        hx,
+        hy,
+        hz,
+        m,
+    )
+}
+
+/// Standard parameters of a pseudo-inertia (the inverse of
+/// [`pseudo_inertia`], linear).
+fn from_pseudo(j: &Matrix4<f64>) -> DVector<f64> {
+    let trace = j[(0, 0)] + j[(1, 1)] + j[(2, 2)];
+    DVector::from_vec(vec![
+        j[(3, 3)],
+        j[(0, 3)],
+        j[(1, 3)],
+        j[(2, 3)],
+        trace - j[(0, 0)],
+        -j[(0, 1)],
+        trace - j[(1, 1)],
+        -j[(0, 2)],
+        -j[(1, 2)],
+        trace - j[(2, 2)],
+    ])
+}
+
+/// The (row, column) of each log-Cholesky parameter in the upper-triangular
+/// factor U (J = U U^T): the four diagonal entries (as logarithms), then
+/// the six above it.
+const ENTRIES: [(usize, usize); 10] = [
+    (0, 0),
+    (1, 1),
+    (2, 2),
+    (3, 3),
+    (0, 1),
+    (0, 2),
+    (0, 3),
+    (1, 2),
+    (1, 3),
+    (2, 3),
+];
+
+/// The log-Cholesky parameters of a definite pseudo-inertia: the Cholesky
+/// factor of the index-reversed matrix, reversed, is upper triangular.
+fn log_cholesky(j: &Matrix4<f64>) -> DVector<f64> {
+    let reversed = Matrix4::from_fn(|a, b| j[(3 - a, 3 - b)]);
+    let l = reversed
+        .cholesky()
+        .map(|c| c.l())
+        .unwrap_or_else(|| Matrix4::identity() * j.norm().max(1e-12).sqrt());
+    let u = Matrix4::from_fn(|a, b| l[(3 - a, 3 - b)]);
+    DVector::from_fn(10, |k, _| {
+        let (a, b) = ENTRIES[k];
+        if a == b {
+            u[(a, a)].max(1e-300).ln()
+        } else {
+            u[(a, b)]
+        }
+    })
+}
+
+/// Standard parameters of log-Cholesky parameters theta, and their
+/// Jacobian (10 x 10).
+fn parameters(theta: &DVector<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    let mut u = Matrix4::zeros();
+    for (k, &(a, b)) in ENTRIES.iter().enumerate() {
+        u[(a, b)] = if a == b { theta[k].exp() } else { theta[k] };
+    }
+    let p = from_pseudo(&(u * u.transpose()));
+    let mut jacobian = DMatrix::zeros(10, 10);
+    for (k, &(a, b)) in ENTRIES.iter().enumerate() {
+        let mut du = Matrix4::zeros();
+        du[(a, b)] = if a == b { u[(a, a)] } else { 1.0 };
+        let dj = du * u.transpose() + u * du.transpose();
+        jacobian.set_column(k, &from_pseudo(&dj));
+    }
+    (p, jacobian)
+}
+
+/// Which of the ten standard parameters the data determine: those whose
+/// own direction lies (within 10%) in the span the Gram matrix sees.
+pub(super) fn determined(gram: &DMatrix<f64>) -> Vec<&'static str> {
+    let d = column_norms(gram, 1e-9);
+    let Some((_, null)) = combinations(gram, WHOLE_COLLINEAR, 1e-9) else {
+        return Vec::new();
+    };
+    // The null directions in unit-diagonal coordinates, orthonormalized.
+    let unseen: Vec<DVector<f64>> = null
+        .iter()
+        .map(|v| DVector::from_fn(10, |i, _| if d[i] > 0.0 { v[i] * d[i] } else { v[i] }))
+        .collect();
+    let basis = if unseen.is_empty() {
+        DMatrix::zeros(10, 0)
+    } else {
+        DMatrix::from_columns(&unseen).qr().q()
+    };
+    (0..10)
+        .filter(|&i| {
+            d[i] > 0.0
+                && (0..basis.ncols())
+                    .map(|l| basis[(i, l)].powi(2))
+                    .sum::<f64>()
+                    < 0.01
+        })
+        .map(|i| PARAMETERS[i])
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::super::shape::point_mass;
+    use super::*;
+
+    fn rod(m: f64, c: [f64; 3], moments: [f64; 3]) -> [f64; 10] {
+        let mut p = point_mass(m, &Vector3::from(c));
+        p[4] += moments[0];
+        p[6] += moments[1];
+        p[9] += moments[2];
+        p
+    }
+
+    #[test]
+    fn log_cholesky_parameters_round_trip_and_their_jacobian_is_exact() {
+        let body = rod(1.3, [0.1, -0.05, 0.2], [0.02, 0.03, 0.015]);
+        let theta = log_cholesky(&pseudo_inertia(&body));
+        let (p, jacobian) = parameters(&theta);
+        for i in 0..10 {
+            assert!((p[i] - body[i]).abs() < 1e-12, "{p} {body:?}");
+        }
+        for k in 0..10 {
+            let h = 1e-6;
+            let (mut up, mut down) = (theta.clone(), theta.clone());
+            up[k] += h;
+            down[k] -= h;
+            let difference = (parameters(&up).0 - parameters(&down).0) / (2.0 * h);
+            assert!((difference - jacobian.column(k)).amax() < 1e-7, "{k}");
+        }
+    }
+
+    /// Data that see every parameter: a physical fit is kept as it is; an
+    /// impossible one (principal moments 1, 1, 3) is moved to a body.
+    #[test]
+    fn the_named_body_is_the_fit_when_physical_and_a_body_otherwise() {
+        let gram = DMatrix::identity(10, 10);
+        let modelled = rod(1.0, [0.0, 0.0, 0.1], [0.01, 0.01, 0.01]);
+        let fitted = rod(1.2, [0.0, 0.0, 0.12], [0.012, 0.012, 0.012]);
+        let basis = DMatrix::identity(10, 10);
+        let change: Vec<f64> = (0..10).map(|i| fitted[i] - modelled[i]).collect();
+        let (body, lost) = named_body(&modelled, &basis, &gram, &change);
+        assert!(lost < 1e-10, "{lost}");
+        for i in 0..10 {
+            assert!((body[i] - fitted[i]).abs() < 1e-6, "{body:?}");
+        }
+        let impossible = rod(1.0, [0.0; 3], [1.0, 1.0, 3.0]);
+        let change: Vec<f64> = (0..10).map(|i| impossible[i] - modelled[i]).collect();
+        let (body, lost) = named_body(&modelled, &basis, &gram, &change);
+        assert_eq!(physically_consistent(&body), Some(true), "{body:?}");
+        assert!(lost > 0.0 && lost < 1.0, "{lost}");
+    }
+
+    /// Data that see only the inertia about z (a link turning about one
+    /// axis): one combination, izz determined, the rest from the model.
+    #[test]
+    fn one_axis_determines_one_combination() {
+        let mut gram = DMatrix::zeros(10, 10);
+        gram[(9, 9)] = 4.0;
+        let (basis, null) = combinations(&gram, WHOLE_COLLINEAR, 1e-9).unwrap();
+        assert_eq!((basis.ncols(), null.len()), (1, 9));
+        assert_eq!(determined(&gram), ["izz"]);
+    }
+}
