@@ -28,33 +28,38 @@ pub(super) struct Fit {
 /// above [`CHOLESKY_PIVOT`] (a well-conditioned H, nearly every call) solves
 /// it at a fraction of the SVD's cost, with the same solution.
 pub(super) fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
+    let x = pseudo_solve_columns(h, &DMatrix::from_column_slice(g.len(), 1, g.as_slice()));
+    DVector::from_column_slice(x.as_slice())
+}
+
+/// [`pseudo_solve`] for each column of `g`, with one factorization.
+pub(super) fn pseudo_solve_columns(h: &DMatrix<f64>, g: &DMatrix<f64>) -> DMatrix<f64> {
     let k = h.nrows();
     if k == 0 {
-        return DVector::zeros(0);
+        return DMatrix::zeros(0, g.ncols());
     }
     let d = DVector::from_fn(k, |i, _| {
         let v = h[(i, i)];
         if v > 0.0 { v.sqrt() } else { 1.0 }
     });
     let scaled = DMatrix::from_fn(k, k, |i, j| h[(i, j)] / (d[i] * d[j]));
-    let rhs = DVector::from_fn(k, |i, _| g[i] / d[i]);
+    let rhs = DMatrix::from_fn(k, g.ncols(), |i, j| g[(i, j)] / d[i]);
+    let unscale = |x: DMatrix<f64>| DMatrix::from_fn(k, x.ncols(), |i, j| x[(i, j)] / d[i]);
     if let Some(cholesky) = scaled.clone().cholesky() {
         let l = cholesky.l_dirty();
         if (0..k).all(|i| l[(i, i)] * l[(i, i)] > CHOLESKY_PIVOT) {
-            let x = cholesky.solve(&rhs);
-            return DVector::from_fn(k, |i, _| x[i] / d[i]);
+            return unscale(cholesky.solve(&rhs));
         }
     }
     // Non-finite or non-converging: no solution (the callers check their
     // data for finiteness first, so this is a guard, not a path).
     let Some(svd) = crate::kernels::svd(scaled) else {
-        return DVector::zeros(k);
+        return DMatrix::zeros(k, g.ncols());
     };
     let tolerance = 1e-12 * svd.singular_values.max().max(f64::MIN_POSITIVE);
-    let x = svd
-        .solve(&rhs, tolerance)
-        .unwrap_or_else(|_| DVector::zeros(k));
-    DVector::from_fn(k, |i, _| x[i] / d[i])
+    svd.solve(&rhs, tolerance)
+        .map(unscale)
+        .unwrap_or_else(|_| DMatrix::zeros(k, g.ncols()))
 }
 
 /// Column coefficients and their Jacobian for concatenated parameters.
@@ -192,10 +197,86 @@ pub(super) fn fit(
     })
 }
 
+/// The least-squares fit from `theta` on the normal equations (a, b): the
+/// linear candidates' coefficients eliminated exactly (variable
+/// projection: for given nonlinear coefficients the best linear ones solve
+/// a linear system, which leaves normal equations in the nonlinear
+/// coefficients alone, their Schur complement), Levenberg-Marquardt on
+/// what is left. Linear parameters collinear with a body's columns (a
+/// neighbouring link's whole-body error) made the joint descent crawl.
+/// Returns the parameters, the column coefficients, their Jacobian and the
+/// objective.
+fn descend(
+    candidates: &[Candidate],
+    selected: &[usize],
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    theta: DVector<f64>,
+) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
+    let (mut linear_columns, mut nonlinear_columns) = (Vec::new(), Vec::new());
+    let mut nonlinear_parameters = Vec::new();
+    let (mut column, mut parameter) = (0, 0);
+    for &c in selected {
+        let (n, w) = (candidates[c].columns.len(), width(&candidates[c]));
+        if candidates[c].shape.is_linear() {
+            linear_columns.extend(column..column + n);
+        } else {
+            nonlinear_columns.extend(column..column + n);
+            nonlinear_parameters.extend(parameter..parameter + w);
+        }
+        (column, parameter) = (column + n, parameter + w);
+    }
+    if nonlinear_columns.is_empty() || linear_columns.is_empty() {
+        return levenberg_marquardt(candidates, selected, a, b, theta);
+    }
+    let block = |rows: &[usize], columns: &[usize]| a.select_rows(rows).select_columns(columns);
+    let a_ll = block(&linear_columns, &linear_columns);
+    let a_ln = block(&linear_columns, &nonlinear_columns);
+    let mut rhs = a_ln.clone().insert_column(a_ln.ncols(), 0.0);
+    rhs.set_column(a_ln.ncols(), &b.select_rows(&linear_columns));
+    // A_ll^+ [A_ln, b_l]: the best linear coefficients are y - X c_n.
+    let solved = pseudo_solve_columns(&a_ll, &rhs);
+    let x = solved.columns(0, a_ln.ncols()).into_owned();
+    let y = solved.column(a_ln.ncols()).into_owned();
+    let a_nl = a_ln.transpose();
+    let reduced_a = block(&nonlinear_columns, &nonlinear_columns) - &a_nl * &x;
+    let reduced_b = b.select_rows(&nonlinear_columns) - &a_nl * &y;
+    let bodies: Vec<usize> = selected
+        .iter()
+        .copied()
+        .filter(|&c| !candidates[c].shape.is_linear())
+        .collect();
+    let (body_theta, body_coefficients, _, _) = levenberg_marquardt(
+        candidates,
+        &bodies,
+        &reduced_a,
+        &reduced_b,
+        theta.select_rows(&nonlinear_parameters),
+    );
+    let linear = y - x * body_coefficients;
+    let mut theta = theta;
+    let (mut at_linear, mut at_body, mut parameter) = (0, 0, 0);
+    for &c in selected {
+        let w = width(&candidates[c]);
+        for k in parameter..parameter + w {
+            if candidates[c].shape.is_linear() {
+                theta[k] = linear[at_linear];
+                at_linear += 1;
+            } else {
+                theta[k] = body_theta[at_body];
+                at_body += 1;
+            }
+        }
+        parameter += w;
+    }
+    let (coefficients, jacobian) = coefficients(candidates, selected, &theta);
+    let value = coefficients.dot(&(a * &coefficients)) - 2.0 * coefficients.dot(b);
+    (theta, coefficients, jacobian, value)
+}
+
 /// Levenberg-Marquardt from `theta` on the normal equations (a, b); one
-/// exact step when every candidate is linear. Returns the parameters, the
-/// column coefficients, their Jacobian and the objective.
-pub(super) fn descend(
+/// exact step when every candidate is linear.
+fn levenberg_marquardt(
     candidates: &[Candidate],
     selected: &[usize],
     a: &DMatrix<f64>,
