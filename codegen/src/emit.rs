@@ -112,7 +112,7 @@ impl Shape {
     }
 
     /// The result expression from the roots' expressions, in order.
-    fn value(self, values: &[TokenStream]) -> TokenStream {
+    pub(crate) fn value(self, values: &[TokenStream]) -> TokenStream {
         let matrix = |values: &[TokenStream], cols: usize| {
             let rows = values.chunks(cols).map(|row| quote! { [#(#row),*] });
             quote! { [#(#rows),*] }
@@ -145,6 +145,7 @@ impl Shape {
 }
 
 /// One generated function: its DAG, inputs and row-major result roots.
+#[derive(Clone, Copy)]
 pub struct Function<'a> {
     pub name: &'a str,
     pub doc: &'a str,
@@ -159,6 +160,22 @@ pub struct Function<'a> {
 impl Function<'_> {
     /// The function as Rust tokens.
     pub fn tokens(&self) -> TokenStream {
+        let used = self.used_inputs();
+        let mut body = self.prologue(&used);
+        let (lets, names) = self.intermediates();
+        body.extend(lets);
+        let printer = self.printer();
+        let values: Vec<TokenStream> = self
+            .roots
+            .iter()
+            .map(|&r| printer.expr(r, &names))
+            .collect();
+        self.signature(body, self.shape.value(&values))
+    }
+
+    /// The function item around `body` (statements) and `result`; an
+    /// argument the body does not read is named `_q` (no warning).
+    pub(crate) fn signature(&self, body: Vec<TokenStream>, result: TokenStream) -> TokenStream {
         let name = format_ident!("{}", self.name);
         let doc = self.doc;
         let n = int(self.dof);
@@ -173,35 +190,25 @@ impl Function<'_> {
             quote! { #ident: &[f64; #n] }
         });
         let ret = self.shape.rust_type();
-        let prologue = self.prologue(&used);
-        let (lets, names) = self.intermediates();
-        let printer = self.printer();
-        let values: Vec<TokenStream> = self
-            .roots
-            .iter()
-            .map(|&r| printer.expr(r, &names))
-            .collect();
-        let result = self.shape.value(&values);
         quote! {
             #[doc = #doc]
             #[inline]
             #[must_use]
             pub fn #name(#(#params),*) -> #ret {
-                #(#prologue)*
-                #(#lets)*
+                #(#body)*
                 #result
             }
         }
     }
 
-    fn printer(&self) -> Printer<'_> {
+    pub(crate) fn printer(&self) -> Printer<'_> {
         Printer {
             dag: self.dag,
             inputs: self.inputs,
         }
     }
 
-    fn used_inputs(&self) -> Vec<Input> {
+    pub(crate) fn used_inputs(&self) -> Vec<Input> {
         let mut used = vec![false; self.inputs.len()];
         let mut seen = vec![false; self.dag.nodes.len()];
         let mut stack = self.roots.to_vec();
@@ -223,7 +230,7 @@ impl Function<'_> {
 
     /// Bindings of the used inputs: the sines and cosines all at once (one
     /// vectorized `sin_cos_n`), then velocities, accelerations and signs.
-    fn prologue(&self, used: &[Input]) -> Vec<TokenStream> {
+    pub(crate) fn prologue(&self, used: &[Input]) -> Vec<TokenStream> {
         let has = |input: Input| used.contains(&input);
         let mut lines = Vec::new();
         let angles: Vec<usize> = (0..self.dof)
@@ -309,7 +316,7 @@ impl Function<'_> {
     }
 
     /// One `let` per node used more than once, in evaluation order.
-    fn intermediates(&self) -> (Vec<TokenStream>, HashMap<NodeId, Ident>) {
+    pub(crate) fn intermediates(&self) -> (Vec<TokenStream>, HashMap<NodeId, Ident>) {
         let uses = self.use_counts();
         let mut names = HashMap::new();
         let mut lets = Vec::new();

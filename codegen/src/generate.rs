@@ -15,6 +15,7 @@ use crate::composed;
 use crate::crosscheck;
 use crate::description::{Description, JointKind};
 use crate::emit::{Argument, Function, Input, Shape};
+use crate::emit_lanes::LaneFunction;
 use crate::fingerprint::{FINGERPRINT_PREFIX, fingerprint, generator_version};
 use crate::lagrangian;
 use crate::listing;
@@ -78,9 +79,19 @@ pub fn generate(
     let mut operations = Vec::new();
     let mut items = Vec::new();
     for spec in functions(&traced, dof) {
+        // The derivatives run as a two-lane program (`lanes.rs`): the primal
+        // values its coefficients read, then the lane operations.
+        let lanes = (spec.name == "tau_derivatives").then_some(&traced.tau_lanes);
+        let count = match lanes {
+            Some(program) => {
+                let primal = traced.dag.negation_aware_count(&program.primal_uses());
+                primal + program.operation_count()
+            }
+            None => traced.dag.negation_aware_count(&spec.roots),
+        };
         operations.push(Cost {
             function: spec.name.to_string(),
-            operations: traced.dag.negation_aware_count(&spec.roots),
+            operations: count,
         });
         let function = Function {
             name: spec.name,
@@ -92,7 +103,15 @@ pub fn generate(
             roots: &spec.roots,
             shape: spec.shape,
         };
-        items.push(function.tokens());
+        items.push(match lanes {
+            Some(program) => LaneFunction {
+                primal: function,
+                program,
+                pairs: &traced.pairs,
+            }
+            .tokens(),
+            None => function.tokens(),
+        });
     }
     let constants = listing::constants(description, &traced, &inputs);
     let composed = composed::items();

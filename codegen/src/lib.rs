@@ -25,8 +25,11 @@ mod config;
 #[cfg(feature = "symbolic")]
 mod crosscheck;
 pub mod derivative;
+pub mod lanes;
 #[cfg(feature = "symbolic")]
 mod emit;
+#[cfg(feature = "symbolic")]
+mod emit_lanes;
 #[cfg(feature = "symbolic")]
 mod generate;
 #[cfg(feature = "symbolic")]
