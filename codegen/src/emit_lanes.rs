@@ -98,7 +98,10 @@ fn sum(terms: &[Term], factor: &dyn Fn(NodeId) -> TokenStream) -> TokenStream {
     };
     let rest = terms.iter().enumerate().filter(|&(k, _)| k != lead);
     for (_, term) in rest.clone().filter(|(_, t)| t.factor.is_some()) {
-        let (f, d) = (factor(term.factor.expect("scaled")), tangent_ident(term.of.tangent));
+        let (f, d) = (
+            factor(term.factor.expect("scaled")),
+            tangent_ident(term.of.tangent),
+        );
         out = if term.of.negated {
             quote! { #out.sub_mul(#f, #d) }
         } else {

@@ -63,13 +63,21 @@ impl LaneProgram {
             of[id] = match node {
                 Node::Input(i) => {
                     let lanes = [seeds[0][i], seeds[1][i]];
-                    lanes.iter().any(Option::is_some).then(|| self.push(Tangent::Seed(lanes)))
+                    lanes
+                        .iter()
+                        .any(Option::is_some)
+                        .then(|| self.push(Tangent::Seed(lanes)))
                 }
                 Node::Const(_) | Node::Param(_) => None,
                 Node::Add(ops) => {
                     let terms = ops
                         .iter()
-                        .filter_map(|&o| of[o].map(|r| Term { factor: None, of: r }))
+                        .filter_map(|&o| {
+                            of[o].map(|r| Term {
+                                factor: None,
+                                of: r,
+                            })
+                        })
                         .collect();
                     self.sum(dag, terms)
                 }
@@ -185,7 +193,8 @@ fn combine(dag: &mut Dag, terms: Vec<Term>) -> Vec<Term> {
     let mut out: Vec<(Term, i32)> = Vec::new();
     for term in terms {
         let sign = if term.of.negated { -1 } else { 1 };
-        let same = |(t, _): &(Term, i32)| t.factor == term.factor && t.of.tangent == term.of.tangent;
+        let same =
+            |(t, _): &(Term, i32)| t.factor == term.factor && t.of.tangent == term.of.tangent;
         match out.iter_mut().find(|entry| same(entry)) {
             Some((_, count)) => *count += sign,
             None => out.push((term, sign)),
@@ -299,7 +308,11 @@ mod tests {
         let n = dag.negate(s);
         let one = dag.constant(1.0);
         let mut lanes = LaneProgram::default();
-        lanes.push_group(&mut dag, &[n], &[vec![Some(one), None], vec![Some(one), None]]);
+        lanes.push_group(
+            &mut dag,
+            &[n],
+            &[vec![Some(one), None], vec![Some(one), None]],
+        );
         assert_eq!(lanes.tangents.len(), 1, "only the seed");
         assert_eq!(lanes.operation_count(), 0);
         assert!(lanes.roots[0][0].unwrap().negated);

@@ -25,7 +25,6 @@ mod config;
 #[cfg(feature = "symbolic")]
 mod crosscheck;
 pub mod derivative;
-pub mod lanes;
 #[cfg(feature = "symbolic")]
 mod emit;
 #[cfg(feature = "symbolic")]
@@ -34,6 +33,7 @@ mod emit_lanes;
 mod generate;
 #[cfg(feature = "symbolic")]
 mod lagrangian;
+pub mod lanes;
 #[cfg(feature = "symbolic")]
 mod listing;
 #[cfg(feature = "symbolic")]

@@ -322,17 +322,18 @@ fn a_tool_frame_fixed_to_the_tip_is_placed_and_its_jacobian_is_exact() {
 }
 
 #[test]
-fn print_lane_counts() {
+fn the_lanes_do_fewer_operations_than_the_scalar_passes() {
     let description = shipped("panda");
     let traced = trace(description.chain());
     let scalar = traced
         .dag
         .negation_aware_count(&[traced.tau_by_q.clone(), traced.tau_by_qd.clone()].concat());
-    let primal: Vec<NodeId> = traced.tau_lanes.primal_uses();
-    println!(
-        "scalar {scalar} lanes {} primal {} tangents {}",
-        traced.tau_lanes.operation_count(),
-        traced.dag.negation_aware_count(&primal),
-        traced.tau_lanes.tangents.len()
+    let lanes = &traced.tau_lanes;
+    let primal = traced.dag.negation_aware_count(&lanes.primal_uses());
+    // Panda: 5,439 scalar operations; 599 primal and 3,083 lane ones.
+    assert!(
+        primal + lanes.operation_count() < scalar * 7 / 10,
+        "{primal} + {} against {scalar}",
+        lanes.operation_count()
     );
 }
