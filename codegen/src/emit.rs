@@ -16,6 +16,9 @@ pub enum Argument {
     Q,
     Qd,
     Qdd,
+    /// Joint torques, the input of forward dynamics (no program input reads
+    /// it: the emitter solves for qdd with it).
+    Tau,
 }
 
 impl Argument {
@@ -24,6 +27,7 @@ impl Argument {
             Argument::Q => format_ident!("q"),
             Argument::Qd => format_ident!("qd"),
             Argument::Qdd => format_ident!("qdd"),
+            Argument::Tau => format_ident!("tau"),
         }
     }
 }
@@ -163,7 +167,7 @@ impl Function<'_> {
         let used = self.used_inputs();
         let mut body = self.prologue(&used);
         let (lets, names) = self.intermediates();
-        body.extend(lets);
+        body.extend(lets.into_iter().map(|(_, statement)| statement));
         let printer = self.printer();
         let values: Vec<TokenStream> = self
             .roots
@@ -181,7 +185,7 @@ impl Function<'_> {
         let n = int(self.dof);
         let used = self.used_inputs();
         let params = self.arguments.iter().map(|&a| {
-            let used_here = used.iter().any(|input| argument_of(*input) == a);
+            let used_here = a == Argument::Tau || used.iter().any(|input| argument_of(*input) == a);
             let ident = if used_here {
                 a.ident()
             } else {
@@ -263,7 +267,9 @@ impl Function<'_> {
                 let v = Input::Qd(i).ident();
                 lines.push(quote! { let #v = qd[#index]; });
             }
-            if has(Input::Qdd(i)) {
+            // Without a qdd argument (forward dynamics' derivatives), the
+            // caller binds qdd after solving for it.
+            if has(Input::Qdd(i)) && self.arguments.contains(&Argument::Qdd) {
                 let a = Input::Qdd(i).ident();
                 lines.push(quote! { let #a = qdd[#index]; });
             }
@@ -316,7 +322,8 @@ impl Function<'_> {
     }
 
     /// One `let` per node used more than once, in evaluation order.
-    pub(crate) fn intermediates(&self) -> (Vec<TokenStream>, HashMap<NodeId, Ident>) {
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn intermediates(&self) -> (Vec<(NodeId, TokenStream)>, HashMap<NodeId, Ident>) {
         let uses = self.use_counts();
         let mut names = HashMap::new();
         let mut lets = Vec::new();
@@ -327,7 +334,7 @@ impl Function<'_> {
             if shared && compound && !self.dag.is_constant(id) {
                 let expr = self.printer().expr(id, &names);
                 let name = format_ident!("t{}", names.len());
-                lets.push(quote! { let #name = #expr; });
+                lets.push((id, quote! { let #name = #expr; }));
                 names.insert(id, name);
             }
         }

@@ -15,7 +15,7 @@ use crate::composed;
 use crate::crosscheck;
 use crate::description::{Description, JointKind};
 use crate::emit::{Argument, Function, Input, Shape};
-use crate::emit_lanes::LaneFunction;
+use crate::emit_lanes::{Forward, LaneFunction};
 use crate::fingerprint::{FINGERPRINT_PREFIX, fingerprint, generator_version};
 use crate::lagrangian;
 use crate::listing;
@@ -81,11 +81,22 @@ pub fn generate(
     for spec in functions(&traced, dof) {
         // The derivatives run as a two-lane program (`lanes.rs`): the primal
         // values its coefficients read, then the lane operations.
-        let lanes = (spec.name == "tau_derivatives").then_some(&traced.tau_lanes);
+        let lanes = matches!(
+            spec.name,
+            "tau_derivatives" | "forward_dynamics_derivatives"
+        )
+        .then_some(&traced.tau_lanes);
+        let through = (spec.name == "forward_dynamics_derivatives").then_some(Forward {
+            factor: &traced.mass_factor,
+            bias: &traced.bias,
+        });
         let count = match lanes {
             Some(program) => {
-                let primal = traced.dag.negation_aware_count(&program.primal_uses());
-                primal + program.operation_count()
+                let mut primal = program.primal_uses();
+                if let Some(forward) = through {
+                    primal.extend(forward.factor.iter().chain(forward.bias));
+                }
+                traced.dag.negation_aware_count(&primal) + program.operation_count()
             }
             None => traced.dag.negation_aware_count(&spec.roots),
         };
@@ -108,6 +119,7 @@ pub fn generate(
                 primal: function,
                 program,
                 pairs: &traced.pairs,
+                through,
             }
             .tokens(),
             None => function.tokens(),
@@ -274,6 +286,13 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
             arguments: ALL,
             shape: Shape::Pair(n, n),
             roots: [traced.tau_by_q.clone(), traced.tau_by_qd.clone()].concat(),
+        },
+        Spec {
+            name: "forward_dynamics_derivatives",
+            doc: " Exact (d qdd / d q, d qdd / d qd) of `forward_dynamics` at (q, qd, tau): row i is qdd_i, column j is q_j or qd_j; d qdd / d tau is M^-1 (`solve_mass`). From tau(q, qd, qdd(q, qd, tau)) = tau: d qdd / d x = -M^-1 d tau / d x at the forward dynamics' qdd, traced with `mass_factor` and `bias` in one pass (they share sines and velocities).",
+            arguments: &[Argument::Q, Argument::Qd, Argument::Tau],
+            shape: Shape::Pair(n, n),
+            roots: Vec::new(),
         },
         Spec {
             name: "link_poses",

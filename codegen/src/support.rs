@@ -86,7 +86,7 @@ pub fn items() -> TokenStream {
         mod lanes {
             use core::arch::x86_64::{
                 __m128d, _mm_add_pd, _mm_cvtsd_f64, _mm_mul_pd, _mm_set1_pd, _mm_set_pd,
-                _mm_sub_pd, _mm_unpackhi_pd,
+                _mm_sub_pd, _mm_unpackhi_pd, _mm_xor_pd,
             };
             #[derive(Clone, Copy)]
             pub(super) struct Lanes(__m128d);
@@ -144,6 +144,13 @@ pub fn items() -> TokenStream {
                     Lanes(unsafe { _mm_sub_pd(self.0, d.0) })
                 }
             }
+            impl core::ops::Neg for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn neg(self) -> Lanes {
+                    Lanes(unsafe { _mm_xor_pd(self.0, _mm_set1_pd(-0.0)) })
+                }
+            }
         }
         /// `Lanes` as a plain pair, lane by lane through `AddMul`.
         #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
@@ -187,8 +194,41 @@ pub fn items() -> TokenStream {
                     Lanes([self.0[0] - d.0[0], self.0[1] - d.0[1]])
                 }
             }
+            impl core::ops::Neg for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn neg(self) -> Lanes {
+                    Lanes(self.0.map(|x| -x))
+                }
+            }
         }
         use lanes::Lanes;
+        /// x with L D L^T x = -b for two right-hand sides at once, one per
+        /// lane (`forward_dynamics_derivatives`: a joint's angle and speed
+        /// columns); the minus rides on the pivots' scaling. (`inline`, not
+        /// `inline(always)`: forced into the caller seven times it measured
+        /// slower than the scalar columns' solve.)
+        #[inline]
+        fn solve_factored_lanes_negated<const N: usize>(
+            factor: &[[f64; N]; N],
+            b: [Lanes; N],
+        ) -> [Lanes; N] {
+            let mut x = b;
+            for i in 0..N {
+                for k in 0..i {
+                    x[i] = x[i].sub_mul(factor[i][k], x[k]);
+                }
+            }
+            for i in 0..N {
+                x[i] = x[i].times(-factor[i][i]);
+            }
+            for i in (0..N).rev() {
+                for k in i + 1..N {
+                    x[i] = x[i].sub_mul(factor[k][i], x[k]);
+                }
+            }
+            x
+        }
         /// `a * b + c`: one fused instruction and one rounding where the
         /// target has FMA (x86-64 built with `-C target-feature=+fma` or
         /// `-C target-cpu=native` on a CPU with FMA; every aarch64), chosen
