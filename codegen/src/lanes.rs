@@ -251,8 +251,8 @@ fn product_terms(dag: &mut Dag, ops: &[NodeId], of: &[Option<Ref>]) -> Vec<Term>
             r = flip(r);
         }
         match factor.map(|c| dag.nodes[c].clone()) {
-            Some(Node::Const(v)) if v == 1.0 => factor = None,
-            Some(Node::Const(v)) if v == -1.0 => {
+            Some(Node::Const(1.0)) => factor = None,
+            Some(Node::Const(-1.0)) => {
                 factor = None;
                 r = flip(r);
             }
