@@ -1,7 +1,7 @@
-//! The generated functions written with the traced ones: forward dynamics,
-//! `solve_mass` and the derivatives of forward dynamics, through the
-//! traced `mass_factor` (M = L D L^T), `bias` and `tau_derivatives`, and
-//! the triangular solves of `solve_factored` (support). The same text for
+//! The generated functions written with the traced ones: forward dynamics
+//! and `solve_mass`, through the traced `mass_factor` (M = L D L^T) and
+//! `bias`, and the triangular solves of `solve_factored` (support). (The
+//! derivatives of forward dynamics are emitted by `emit_lanes.rs`.) The same text for
 //! every model; the sizes come from its `DOF`.
 
 use proc_macro2::TokenStream;
@@ -25,27 +25,6 @@ pub fn items() -> TokenStream {
         #[must_use]
         pub fn solve_mass(q: &[f64; DOF], b: &[f64; DOF]) -> [f64; DOF] {
             solve_factored(&mass_factor(q), *b)
-        }
-        /// Exact (d qdd / d q, d qdd / d qd) of `forward_dynamics` at
-        /// (q, qd, tau): row i is qdd_i, column j is q_j or qd_j; d qdd / d tau
-        /// is M^-1 (`solve_mass`). From tau(q, qd, qdd(q, qd, tau)) = tau:
-        /// d qdd / d x = -M^-1 d tau / d x at the forward dynamics' qdd.
-        #[inline]
-        #[must_use]
-        pub fn forward_dynamics_derivatives(
-            q: &[f64; DOF],
-            qd: &[f64; DOF],
-            tau: &[f64; DOF],
-        ) -> ([[f64; DOF]; DOF], [[f64; DOF]; DOF]) {
-            let factor = mass_factor(q);
-            let bias = bias(q, qd);
-            let qdd = solve_factored(&factor, core::array::from_fn(|i| tau[i] - bias[i]));
-            let (by_q, by_qd) = tau_derivatives(q, qd, &qdd);
-            let minus = |by: [[f64; DOF]; DOF]| by.map(|row| row.map(|x| -x));
-            (
-                solve_factored_columns(&factor, minus(by_q)),
-                solve_factored_columns(&factor, minus(by_qd)),
-            )
         }
     }
 }

@@ -16,6 +16,9 @@ pub enum Argument {
     Q,
     Qd,
     Qdd,
+    /// Joint torques, the input of forward dynamics (no program input reads
+    /// it: the emitter solves for qdd with it).
+    Tau,
 }
 
 impl Argument {
@@ -24,6 +27,7 @@ impl Argument {
             Argument::Q => format_ident!("q"),
             Argument::Qd => format_ident!("qd"),
             Argument::Qdd => format_ident!("qdd"),
+            Argument::Tau => format_ident!("tau"),
         }
     }
 }
@@ -112,7 +116,7 @@ impl Shape {
     }
 
     /// The result expression from the roots' expressions, in order.
-    fn value(self, values: &[TokenStream]) -> TokenStream {
+    pub(crate) fn value(self, values: &[TokenStream]) -> TokenStream {
         let matrix = |values: &[TokenStream], cols: usize| {
             let rows = values.chunks(cols).map(|row| quote! { [#(#row),*] });
             quote! { [#(#rows),*] }
@@ -145,6 +149,7 @@ impl Shape {
 }
 
 /// One generated function: its DAG, inputs and row-major result roots.
+#[derive(Clone, Copy)]
 pub struct Function<'a> {
     pub name: &'a str,
     pub doc: &'a str,
@@ -159,12 +164,28 @@ pub struct Function<'a> {
 impl Function<'_> {
     /// The function as Rust tokens.
     pub fn tokens(&self) -> TokenStream {
+        let used = self.used_inputs();
+        let mut body = self.prologue(&used);
+        let (lets, names) = self.intermediates();
+        body.extend(lets.into_iter().map(|(_, statement)| statement));
+        let printer = self.printer();
+        let values: Vec<TokenStream> = self
+            .roots
+            .iter()
+            .map(|&r| printer.expr(r, &names))
+            .collect();
+        self.signature(body, self.shape.value(&values))
+    }
+
+    /// The function item around `body` (statements) and `result`; an
+    /// argument the body does not read is named `_q` (no warning).
+    pub(crate) fn signature(&self, body: Vec<TokenStream>, result: TokenStream) -> TokenStream {
         let name = format_ident!("{}", self.name);
         let doc = self.doc;
         let n = int(self.dof);
         let used = self.used_inputs();
         let params = self.arguments.iter().map(|&a| {
-            let used_here = used.iter().any(|input| argument_of(*input) == a);
+            let used_here = a == Argument::Tau || used.iter().any(|input| argument_of(*input) == a);
             let ident = if used_here {
                 a.ident()
             } else {
@@ -173,35 +194,25 @@ impl Function<'_> {
             quote! { #ident: &[f64; #n] }
         });
         let ret = self.shape.rust_type();
-        let prologue = self.prologue(&used);
-        let (lets, names) = self.intermediates();
-        let printer = self.printer();
-        let values: Vec<TokenStream> = self
-            .roots
-            .iter()
-            .map(|&r| printer.expr(r, &names))
-            .collect();
-        let result = self.shape.value(&values);
         quote! {
             #[doc = #doc]
             #[inline]
             #[must_use]
             pub fn #name(#(#params),*) -> #ret {
-                #(#prologue)*
-                #(#lets)*
+                #(#body)*
                 #result
             }
         }
     }
 
-    fn printer(&self) -> Printer<'_> {
+    pub(crate) fn printer(&self) -> Printer<'_> {
         Printer {
             dag: self.dag,
             inputs: self.inputs,
         }
     }
 
-    fn used_inputs(&self) -> Vec<Input> {
+    pub(crate) fn used_inputs(&self) -> Vec<Input> {
         let mut used = vec![false; self.inputs.len()];
         let mut seen = vec![false; self.dag.nodes.len()];
         let mut stack = self.roots.to_vec();
@@ -223,7 +234,7 @@ impl Function<'_> {
 
     /// Bindings of the used inputs: the sines and cosines all at once (one
     /// vectorized `sin_cos_n`), then velocities, accelerations and signs.
-    fn prologue(&self, used: &[Input]) -> Vec<TokenStream> {
+    pub(crate) fn prologue(&self, used: &[Input]) -> Vec<TokenStream> {
         let has = |input: Input| used.contains(&input);
         let mut lines = Vec::new();
         let angles: Vec<usize> = (0..self.dof)
@@ -256,7 +267,9 @@ impl Function<'_> {
                 let v = Input::Qd(i).ident();
                 lines.push(quote! { let #v = qd[#index]; });
             }
-            if has(Input::Qdd(i)) {
+            // Without a qdd argument (forward dynamics' derivatives), the
+            // caller binds qdd after solving for it.
+            if has(Input::Qdd(i)) && self.arguments.contains(&Argument::Qdd) {
                 let a = Input::Qdd(i).ident();
                 lines.push(quote! { let #a = qdd[#index]; });
             }
@@ -309,7 +322,8 @@ impl Function<'_> {
     }
 
     /// One `let` per node used more than once, in evaluation order.
-    fn intermediates(&self) -> (Vec<TokenStream>, HashMap<NodeId, Ident>) {
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn intermediates(&self) -> (Vec<(NodeId, TokenStream)>, HashMap<NodeId, Ident>) {
         let uses = self.use_counts();
         let mut names = HashMap::new();
         let mut lets = Vec::new();
@@ -320,7 +334,7 @@ impl Function<'_> {
             if shared && compound && !self.dag.is_constant(id) {
                 let expr = self.printer().expr(id, &names);
                 let name = format_ident!("t{}", names.len());
-                lets.push(quote! { let #name = #expr; });
+                lets.push((id, quote! { let #name = #expr; }));
                 names.insert(id, name);
             }
         }

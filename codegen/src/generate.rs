@@ -15,6 +15,7 @@ use crate::composed;
 use crate::crosscheck;
 use crate::description::{Description, JointKind};
 use crate::emit::{Argument, Function, Input, Shape};
+use crate::emit_lanes::{Forward, LaneFunction};
 use crate::fingerprint::{FINGERPRINT_PREFIX, fingerprint, generator_version};
 use crate::lagrangian;
 use crate::listing;
@@ -78,9 +79,30 @@ pub fn generate(
     let mut operations = Vec::new();
     let mut items = Vec::new();
     for spec in functions(&traced, dof) {
+        // The derivatives run as a two-lane program (`lanes.rs`): the primal
+        // values its coefficients read, then the lane operations.
+        let lanes = matches!(
+            spec.name,
+            "tau_derivatives" | "forward_dynamics_derivatives"
+        )
+        .then_some(&traced.tau_lanes);
+        let through = (spec.name == "forward_dynamics_derivatives").then_some(Forward {
+            factor: &traced.mass_factor,
+            bias: &traced.bias,
+        });
+        let count = match lanes {
+            Some(program) => {
+                let mut primal = program.primal_uses();
+                if let Some(forward) = through {
+                    primal.extend(forward.factor.iter().chain(forward.bias));
+                }
+                traced.dag.negation_aware_count(&primal) + program.operation_count()
+            }
+            None => traced.dag.negation_aware_count(&spec.roots),
+        };
         operations.push(Cost {
             function: spec.name.to_string(),
-            operations: traced.dag.negation_aware_count(&spec.roots),
+            operations: count,
         });
         let function = Function {
             name: spec.name,
@@ -92,7 +114,16 @@ pub fn generate(
             roots: &spec.roots,
             shape: spec.shape,
         };
-        items.push(function.tokens());
+        items.push(match lanes {
+            Some(program) => LaneFunction {
+                primal: function,
+                program,
+                pairs: &traced.pairs,
+                through,
+            }
+            .tokens(),
+            None => function.tokens(),
+        });
     }
     let constants = listing::constants(description, &traced, &inputs);
     let composed = composed::items();
@@ -255,6 +286,13 @@ fn functions(traced: &Traced, n: usize) -> Vec<Spec> {
             arguments: ALL,
             shape: Shape::Pair(n, n),
             roots: [traced.tau_by_q.clone(), traced.tau_by_qd.clone()].concat(),
+        },
+        Spec {
+            name: "forward_dynamics_derivatives",
+            doc: " Exact (d qdd / d q, d qdd / d qd) of `forward_dynamics` at (q, qd, tau): row i is qdd_i, column j is q_j or qd_j; d qdd / d tau is M^-1 (`solve_mass`). From tau(q, qd, qdd(q, qd, tau)) = tau: d qdd / d x = -M^-1 d tau / d x at the forward dynamics' qdd, traced with `mass_factor` and `bias` in one pass (they share sines and velocities).",
+            arguments: &[Argument::Q, Argument::Qd, Argument::Tau],
+            shape: Shape::Pair(n, n),
+            roots: Vec::new(),
         },
         Spec {
             name: "link_poses",

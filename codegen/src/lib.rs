@@ -28,9 +28,12 @@ pub mod derivative;
 #[cfg(feature = "symbolic")]
 mod emit;
 #[cfg(feature = "symbolic")]
+mod emit_lanes;
+#[cfg(feature = "symbolic")]
 mod generate;
 #[cfg(feature = "symbolic")]
 mod lagrangian;
+pub mod lanes;
 #[cfg(feature = "symbolic")]
 mod listing;
 #[cfg(feature = "symbolic")]

@@ -77,6 +77,158 @@ pub fn items() -> TokenStream {
                 fused(-a, b, self)
             }
         }
+        /// Two derivatives at once (`tau_derivatives`: a joint's angle and
+        /// speed in two lanes). Each operation scales by one primal value,
+        /// broadcast, so both lanes take one packed instruction: SSE2
+        /// intrinsics on x86-64 (part of its baseline), where the compiler
+        /// on its own paired only some of them; plain pairs elsewhere.
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        mod lanes {
+            use core::arch::x86_64::{
+                __m128d, _mm_add_pd, _mm_cvtsd_f64, _mm_mul_pd, _mm_set1_pd, _mm_set_pd,
+                _mm_sub_pd, _mm_unpackhi_pd, _mm_xor_pd,
+            };
+            #[derive(Clone, Copy)]
+            pub(super) struct Lanes(__m128d);
+            // SAFETY (every block below): SSE2 is enabled (the cfg above) and
+            // the intrinsics only compute on registers.
+            impl Lanes {
+                #[inline(always)]
+                pub(super) fn new(a: f64, b: f64) -> Lanes {
+                    Lanes(unsafe { _mm_set_pd(b, a) })
+                }
+                #[inline(always)]
+                pub(super) fn lanes(self) -> [f64; 2] {
+                    unsafe { [_mm_cvtsd_f64(self.0), _mm_cvtsd_f64(_mm_unpackhi_pd(self.0, self.0))] }
+                }
+                #[inline(always)]
+                pub(super) fn times(self, k: f64) -> Lanes {
+                    Lanes(unsafe { _mm_mul_pd(self.0, _mm_set1_pd(k)) })
+                }
+                /// `self + k * d`, fused where the target has FMA (as `fused`).
+                #[inline(always)]
+                pub(super) fn add_mul(self, k: f64, d: Lanes) -> Lanes {
+                    #[cfg(target_feature = "fma")]
+                    {
+                        Lanes(unsafe { core::arch::x86_64::_mm_fmadd_pd(_mm_set1_pd(k), d.0, self.0) })
+                    }
+                    #[cfg(not(target_feature = "fma"))]
+                    {
+                        Lanes(unsafe { _mm_add_pd(self.0, _mm_mul_pd(_mm_set1_pd(k), d.0)) })
+                    }
+                }
+                /// `self - k * d`.
+                #[inline(always)]
+                pub(super) fn sub_mul(self, k: f64, d: Lanes) -> Lanes {
+                    #[cfg(target_feature = "fma")]
+                    {
+                        Lanes(unsafe { core::arch::x86_64::_mm_fnmadd_pd(_mm_set1_pd(k), d.0, self.0) })
+                    }
+                    #[cfg(not(target_feature = "fma"))]
+                    {
+                        Lanes(unsafe { _mm_sub_pd(self.0, _mm_mul_pd(_mm_set1_pd(k), d.0)) })
+                    }
+                }
+            }
+            impl core::ops::Add for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn add(self, d: Lanes) -> Lanes {
+                    Lanes(unsafe { _mm_add_pd(self.0, d.0) })
+                }
+            }
+            impl core::ops::Sub for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn sub(self, d: Lanes) -> Lanes {
+                    Lanes(unsafe { _mm_sub_pd(self.0, d.0) })
+                }
+            }
+            impl core::ops::Neg for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn neg(self) -> Lanes {
+                    Lanes(unsafe { _mm_xor_pd(self.0, _mm_set1_pd(-0.0)) })
+                }
+            }
+        }
+        /// `Lanes` as a plain pair, lane by lane through `AddMul`.
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        mod lanes {
+            use super::AddMul;
+            #[derive(Clone, Copy)]
+            pub(super) struct Lanes([f64; 2]);
+            impl Lanes {
+                #[inline(always)]
+                pub(super) fn new(a: f64, b: f64) -> Lanes {
+                    Lanes([a, b])
+                }
+                #[inline(always)]
+                pub(super) fn lanes(self) -> [f64; 2] {
+                    self.0
+                }
+                #[inline(always)]
+                pub(super) fn times(self, k: f64) -> Lanes {
+                    Lanes(self.0.map(|x| x * k))
+                }
+                #[inline(always)]
+                pub(super) fn add_mul(self, k: f64, d: Lanes) -> Lanes {
+                    Lanes([self.0[0].add_mul(k, d.0[0]), self.0[1].add_mul(k, d.0[1])])
+                }
+                #[inline(always)]
+                pub(super) fn sub_mul(self, k: f64, d: Lanes) -> Lanes {
+                    Lanes([self.0[0].sub_mul(k, d.0[0]), self.0[1].sub_mul(k, d.0[1])])
+                }
+            }
+            impl core::ops::Add for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn add(self, d: Lanes) -> Lanes {
+                    Lanes([self.0[0] + d.0[0], self.0[1] + d.0[1]])
+                }
+            }
+            impl core::ops::Sub for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn sub(self, d: Lanes) -> Lanes {
+                    Lanes([self.0[0] - d.0[0], self.0[1] - d.0[1]])
+                }
+            }
+            impl core::ops::Neg for Lanes {
+                type Output = Lanes;
+                #[inline(always)]
+                fn neg(self) -> Lanes {
+                    Lanes(self.0.map(|x| -x))
+                }
+            }
+        }
+        use lanes::Lanes;
+        /// x with L D L^T x = -b for two right-hand sides at once, one per
+        /// lane (`forward_dynamics_derivatives`: a joint's angle and speed
+        /// columns); the minus rides on the pivots' scaling. (`inline`, not
+        /// `inline(always)`: forced into the caller seven times it measured
+        /// slower than the scalar columns' solve.)
+        #[inline]
+        fn solve_factored_lanes_negated<const N: usize>(
+            factor: &[[f64; N]; N],
+            b: [Lanes; N],
+        ) -> [Lanes; N] {
+            let mut x = b;
+            for i in 0..N {
+                for k in 0..i {
+                    x[i] = x[i].sub_mul(factor[i][k], x[k]);
+                }
+            }
+            for i in 0..N {
+                x[i] = x[i].times(-factor[i][i]);
+            }
+            for i in (0..N).rev() {
+                for k in i + 1..N {
+                    x[i] = x[i].sub_mul(factor[k][i], x[k]);
+                }
+            }
+            x
+        }
         /// `a * b + c`: one fused instruction and one rounding where the
         /// target has FMA (x86-64 built with `-C target-feature=+fma` or
         /// `-C target-cpu=native` on a CPU with FMA; every aarch64), chosen

@@ -31,6 +31,7 @@ mod tests;
 mod tests_motion;
 
 pub use constants::{Definition, Group, SNAP, ripple_cycles, stribeck_velocity};
+pub use sensitivity::{Direction, pairs};
 
 use crate::program::{Dag, NodeId};
 use crate::reduce::Chain;
@@ -78,6 +79,10 @@ pub struct Traced {
     /// d tau / d q and d tau / d qd, dof x dof.
     pub tau_by_q: Vec<NodeId>,
     pub tau_by_qd: Vec<NodeId>,
+    /// The same derivatives as a two-lane program, one group per `pairs`
+    /// entry (what the generated `tau_derivatives` runs).
+    pub tau_lanes: crate::lanes::LaneProgram,
+    pub pairs: Vec<[Direction; 2]>,
     /// Per moving body its frame in the base frame: rotation row-major,
     /// then position (12 each).
     pub link_poses: Vec<NodeId>,
@@ -141,6 +146,8 @@ pub fn trace_with_tool(chain: &Chain, tool: Option<&crate::tool::ToolFrame>) -> 
     let rigid = t.backward(&rotations, &motions);
     let tau = t.with_joint_effects(rigid, true);
     let (tau_by_q, tau_by_qd) = t.tau_derivatives(&tau);
+    let pairs = sensitivity::pairs(chain.dof());
+    let tau_lanes = t.tau_lanes(&tau, &pairs);
     let coasting = t.forward(&rotations, &no_acceleration, base_acceleration);
     let rigid = t.backward(&rotations, &coasting);
     let bias = t.with_joint_effects(rigid, false);
@@ -191,6 +198,8 @@ pub fn trace_with_tool(chain: &Chain, tool: Option<&crate::tool::ToolFrame>) -> 
         mass_factor,
         tau_by_q,
         tau_by_qd,
+        tau_lanes,
+        pairs,
         link_poses,
         tip,
         tip_jacobian,

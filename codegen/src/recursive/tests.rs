@@ -509,6 +509,14 @@ fn one_number_edits_keep_the_program_shape() {
         let edited = traced_with_edit(&toml, from, to);
         assert_eq!(base.dag.nodes, edited.dag.nodes, "{from} -> {to}");
         assert_eq!(base.dag.derived, edited.dag.derived, "{from} -> {to}");
+        assert_eq!(
+            base.tau_lanes.tangents, edited.tau_lanes.tangents,
+            "{from} -> {to}"
+        );
+        assert_eq!(
+            base.tau_lanes.roots, edited.tau_lanes.roots,
+            "{from} -> {to}"
+        );
         let names =
             |t: &Traced| -> Vec<String> { t.dag.params.iter().map(|p| p.name.clone()).collect() };
         assert_eq!(names(&base), names(&edited), "{from} -> {to}");

@@ -160,6 +160,35 @@ fn tau_derivatives_equal_differences_of_tau() {
     }
 }
 
+#[test]
+fn the_two_lane_derivatives_equal_the_scalar_ones() {
+    for description in descriptions() {
+        let chain = description.chain();
+        let traced = trace(chain);
+        let n = chain.dof();
+        for [q, qd, qdd] in states(n, 5) {
+            let x = program_inputs(chain, &q, &qd, &qdd);
+            let by_q = traced.dag.evaluate(&traced.tau_by_q, &x);
+            let by_qd = traced.dag.evaluate(&traced.tau_by_qd, &x);
+            let lanes = traced.tau_lanes.evaluate(&traced.dag, &x);
+            let mut got = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
+            for (pair, group) in traced.pairs.iter().zip(&lanes) {
+                for (direction, lane) in pair.iter().zip(0..) {
+                    let (matrix, j) = match *direction {
+                        Direction::Angle(j) => (&mut got.0, j),
+                        Direction::Speed(j) => (&mut got.1, j),
+                    };
+                    for i in 0..n {
+                        matrix[i * n + j] = group[i][lane];
+                    }
+                }
+            }
+            assert_near("d tau / d q, two lanes", &got.0, &by_q, 1e-12);
+            assert_near("d tau / d qd, two lanes", &got.1, &by_qd, 1e-12);
+        }
+    }
+}
+
 /// Each moving body's frame by plain matrix products.
 fn placements(chain: &Chain, q: &[f64]) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
     let mut out: Vec<(Matrix3<f64>, Vector3<f64>)> = Vec::new();
@@ -290,4 +319,21 @@ fn a_tool_frame_fixed_to_the_tip_is_placed_and_its_jacobian_is_exact() {
         }
     }
     assert!(shipped("planar_2link").tool_frame().is_none());
+}
+
+#[test]
+fn the_lanes_do_fewer_operations_than_the_scalar_passes() {
+    let description = shipped("panda");
+    let traced = trace(description.chain());
+    let scalar = traced
+        .dag
+        .negation_aware_count(&[traced.tau_by_q.clone(), traced.tau_by_qd.clone()].concat());
+    let lanes = &traced.tau_lanes;
+    let primal = traced.dag.negation_aware_count(&lanes.primal_uses());
+    // Panda: 5,439 scalar operations; 599 primal and 3,083 lane ones.
+    assert!(
+        primal + lanes.operation_count() < scalar * 7 / 10,
+        "{primal} + {} against {scalar}",
+        lanes.operation_count()
+    );
 }
