@@ -100,6 +100,7 @@ mod select;
 mod settings;
 mod shape;
 mod stacked;
+mod supported;
 mod text;
 mod uncertainty;
 mod unconstrained;
@@ -339,11 +340,18 @@ pub fn diagnose(
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
+    let supported = supported::supported(&moments, data.dof, &candidates, &selected, settings);
+    let width: usize = selected.iter().map(|&c| candidate::width(&candidates[c])).sum();
     let mut effects = describe(
         &moments,
         &candidates,
         &selected,
         settings.com_resolution * size,
+        &supported::bias(
+            &supported,
+            supported::timing_shift(&moments, &candidates, &selected),
+            width,
+        ),
         &mut notes,
     );
     for (effect, &c) in effects.iter_mut().zip(&selected) {
@@ -406,6 +414,7 @@ pub fn diagnose(
         mse_after,
         mse_after_fitted,
         effects,
+        supported: supported::listed(&candidates, &supported, settings.com_resolution * size),
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         sanity,

@@ -263,7 +263,7 @@ pub(super) fn prune(
 
 /// Whether a candidate may compete given the effects already named: an
 /// asymmetry of dry friction only on a joint that has Coulomb friction.
-fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
+pub(super) fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
     let candidate = &candidates[c];
     let Shape::Asymmetry { modelled_coulomb } = candidate.shape else {
         return true;

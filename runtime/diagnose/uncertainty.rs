@@ -3,7 +3,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::candidate::{Candidate, columns_of};
+use super::candidate::{Candidate, Shape, columns_of};
 use super::fit::{Fit, fit, pseudo_solve};
 use super::moments::{Moments, sse_per_joint};
 
@@ -121,6 +121,16 @@ pub(super) fn fit_robust(
     Some((fit, se))
 }
 
+/// 95% half-widths from normal-equivalent standard errors `se` and a bias
+/// `bias` the data cannot rule out (what fitting a supported but unnamed
+/// effect beside the named ones changes): added in quadrature, since the
+/// bias is as likely smaller as it is larger than that change.
+pub(super) fn widened(se: &DVector<f64>, bias: &DVector<f64>) -> DVector<f64> {
+    DVector::from_fn(se.len(), |k, _| {
+        (1.96 * se[k]).hypot(bias.get(k).copied().unwrap_or(0.0))
+    })
+}
+
 /// 95% half-widths of the parameters from the leave-one-trajectory-out
 /// fits (delete-one jackknife over trajectories, Student t with G - 1
 /// degrees of freedom): unlike the least-squares standard errors they hold
@@ -147,6 +157,79 @@ pub(super) fn jackknife_half_widths(
         let spread: f64 = folds.iter().map(|f| (f[k] - mean[k]).powi(2)).sum();
         t * ((g - 1.0) / g * spread).sqrt()
     }))
+}
+
+/// Per parameter, how much the fit moves when the friction of a joint
+/// that moves slower than its at-rest speed is left free: each column with
+/// an applied version (Coulomb friction: the plain sign(qd), also in that
+/// band, against the fitted column's zero there) gets that version as a
+/// second column, so the band's torque has its own coefficient and the
+/// level is the two coefficients' sum. Neither column knows how friction
+/// behaves near zero speed (static, creeping, the simulator's or the arm's
+/// own law); the move is what that ignorance can cost the fitted levels
+/// and, through them, the viscous coefficients. Linear candidates are
+/// refitted with the others' coefficients held; theirs count zero.
+pub(super) fn rest_shift(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    fit: &Fit,
+) -> DVector<f64> {
+    let columns = columns_of(candidates, selected);
+    let mut linear = Vec::new();
+    for &c in selected {
+        let is_linear = matches!(
+            candidates[c].shape,
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. }
+        );
+        linear.extend(std::iter::repeat_n(is_linear, candidates[c].columns.len()));
+    }
+    let free: Vec<usize> = (0..columns.len()).filter(|&k| linear[k]).collect();
+    let held: Vec<usize> = (0..columns.len()).filter(|&k| !linear[k]).collect();
+    let band: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&k| m.applied[columns[k]] != columns[k])
+        .collect();
+    if band.is_empty() {
+        return DVector::zeros(fit.theta.len());
+    }
+    // Free columns, then each banded column's applied version, then the
+    // held ones.
+    let all: Vec<usize> = free
+        .iter()
+        .map(|&k| columns[k])
+        .chain(band.iter().map(|&k| m.applied[columns[k]]))
+        .chain(held.iter().map(|&k| columns[k]))
+        .collect();
+    let (a, b) = m.normal_equations(&all, |_| true);
+    let solved = free.len() + band.len();
+    let inside: Vec<usize> = (0..solved).collect();
+    let outside: Vec<usize> = (solved..all.len()).collect();
+    let rhs = b.select_rows(&inside)
+        - a.select_rows(&inside).select_columns(&outside) * fit.coefficients.select_rows(&held);
+    let refit = pseudo_solve(&a.select_rows(&inside).select_columns(&inside), &rhs);
+    let mut coefficient = fit.coefficients.clone();
+    for (i, &k) in free.iter().enumerate() {
+        coefficient[k] = refit[i];
+    }
+    for (i, &k) in band.iter().enumerate() {
+        coefficient[k] += refit[free.len() + i];
+    }
+    // Linear candidates' parameters are their coefficients, in order.
+    let mut shift = DVector::zeros(fit.theta.len());
+    let (mut column, mut parameter) = (0, 0);
+    for &c in selected {
+        let count = candidates[c].columns.len();
+        if linear[column] {
+            for k in 0..count {
+                shift[parameter + k] = coefficient[column + k] - fit.coefficients[column + k];
+            }
+        }
+        column += count;
+        parameter += super::candidate::width(&candidates[c]);
+    }
+    shift
 }
 
 /// The 97.5% quantile of Student's t with `dof` degrees of freedom.
