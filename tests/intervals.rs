@@ -141,7 +141,10 @@ fn run(case: &Case, recordings: &[Trajectory]) -> Option<Diagnosis> {
     match diagnose(nominal, recordings, &pipeline, Settings::default()) {
         Ok(d) => Some(d),
         Err(e) if e.downcast_ref::<Refusal>().is_some() => {
-            println!("seed {} {}: refused by the sanity gate", case.seed, case.model);
+            println!(
+                "seed {} {}: refused by the sanity gate",
+                case.seed, case.model
+            );
             None
         }
         Err(e) => panic!("{case:?}: {e}"),
@@ -360,5 +363,8 @@ fn intervals_cover_the_truth_on_fixed_cases() {
     }
     let (coverage, _, median) = summary(&outcomes);
     assert!(coverage >= 0.85, "{outcomes:?}");
-    assert!(median < 0.25, "intervals too wide to be useful: {outcomes:?}");
+    assert!(
+        median < 0.25,
+        "intervals too wide to be useful: {outcomes:?}"
+    );
 }

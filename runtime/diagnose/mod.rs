@@ -19,8 +19,10 @@
 //! that cuts the most error over all joints), while it lowers it
 //! by at least `min_gain` and its parameters are significant (|t| > 3, each
 //! with the larger of its least-squares and its delete-one-segment
-//! jackknife standard error, as are the reported 95% intervals). What no
-//! candidate explains is reported as [`Unexplained`].
+//! jackknife standard error; the reported 95% intervals add the bias the
+//! data cannot rule out, see `supported.rs`). An effect the data support that
+//! is not named is listed with its interval (`Diagnosis::supported`). What
+//! no candidate explains is reported as [`Unexplained`].
 //! A fit with a physically impossible sign (negative friction, armature or
 //! payload mass) is never named as that effect: it is reported as a note
 //! (e.g. a negative "armature" means the model's inertia about that joint is
@@ -341,7 +343,10 @@ pub fn diagnose(
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
     let supported = supported::supported(&moments, data.dof, &candidates, &selected, settings);
-    let width: usize = selected.iter().map(|&c| candidate::width(&candidates[c])).sum();
+    let width: usize = selected
+        .iter()
+        .map(|&c| candidate::width(&candidates[c]))
+        .sum();
     let mut effects = describe(
         &moments,
         &candidates,

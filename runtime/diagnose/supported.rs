@@ -2,8 +2,7 @@
 //! what each would change in the named effects' parameters were it fitted
 //! with them. That change is a bias the named fit cannot rule out (the
 //! named parameters absorb part of a small unnamed effect), so the reported
-//! intervals include it (docs/diagnosis.md, "How far the intervals can be
-//! trusted").
+//! intervals include it (docs/diagnosis.md, "How far the intervals hold").
 
 use nalgebra::DVector;
 
@@ -22,7 +21,7 @@ use crate::parallel::map_in_order;
 
 /// The |t| (with the larger of the least-squares and the jackknife
 /// standard error) above which an unnamed effect counts as supported: its
-/// 95% interval excludes no effect.
+/// 95% interval excludes zero.
 const SUPPORT_T: f64 = 1.96;
 
 /// A candidate the data support that was not named.
@@ -34,7 +33,7 @@ pub(super) struct Supported {
     /// The change of the named effects' parameters (concatenated in
     /// selection order) when it is fitted with them.
     pub(super) shift: DVector<f64>,
-    /// The held-out MSE it removes from the joint of `gain`, and that
+    /// The held-out MSE it removes from the joint it helps most, and that
     /// joint's held-out MSE before the diagnosis.
     pub(super) removed: f64,
     pub(super) of: f64,
@@ -71,33 +70,22 @@ pub(super) fn supported(
         let mut trial = selected.to_vec();
         trial.push(c);
         let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-        // Relative changes, so a joint with a large torque does not
-        // outweigh the others.
-        let change: f64 = current
-            .iter()
-            .zip(&mse)
-            .filter(|(b, _)| **b > 0.0)
-            .map(|(b, a)| (b - a) / b)
-            .sum();
-        if !(change > 0.0) {
+        if relative_drop(&current, &mse) <= 0.0 {
             return None;
         }
         let gain = largest_drop(&current, &mse);
         let full = fit(m, candidates, &trial, |_| true)?;
-        significant(m, candidates, &trial, &full, SUPPORT_T)?;
-        let (_, se) = fit_robust(m, candidates, &trial)?;
-        let at = named.len();
-        let w = width(&candidates[c]);
+        let (at, w) = (named.len(), width(&candidates[c]));
         if identifiability(&full.information, at..at + w) < COLLINEAR {
             return None;
         }
+        significant(m, candidates, &trial, &full, SUPPORT_T)?;
+        let (_, se) = fit_robust(m, candidates, &trial)?;
         let own: Vec<f64> = full.theta.rows(at, w).iter().copied().collect();
         physical(&candidates[c], &own, gain, settings.reach).ok()?;
         Some(Supported {
             candidate: c,
-            values: (0..w)
-                .map(|k| (own[k], 1.96 * se[at + k]))
-                .collect(),
+            values: (0..w).map(|k| (own[k], 1.96 * se[at + k])).collect(),
             shift: full.theta.rows(0, at) - &named,
             removed: current[gain.joint] - mse[gain.joint],
             of: initial[gain.joint],
@@ -132,6 +120,18 @@ pub(super) fn timing_shift(
         return None;
     }
     Some(full.theta.rows(0, at) - named)
+}
+
+/// The sum over joints of each joint's relative drop of held-out MSE from
+/// `before` to `after`: relative, so a joint with a large torque does not
+/// outweigh the others (a link effect can help one joint and hurt another).
+fn relative_drop(before: &[f64], after: &[f64]) -> f64 {
+    before
+        .iter()
+        .zip(after)
+        .filter(|(b, _)| **b > 0.0)
+        .map(|(b, a)| (b - a) / b)
+        .sum()
 }
 
 /// The joint whose held-out MSE drops the most (relative to its MSE) from

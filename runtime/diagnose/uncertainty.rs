@@ -122,9 +122,9 @@ pub(super) fn fit_robust(
 }
 
 /// 95% half-widths from normal-equivalent standard errors `se` and a bias
-/// `bias` the data cannot rule out (what fitting a supported but unnamed
-/// effect beside the named ones changes): added in quadrature, since the
-/// bias is as likely smaller as it is larger than that change.
+/// `bias` the data cannot rule out (how far the parameters move when the
+/// fit is given what the named model lacks, see `supported::bias` and
+/// [`rest_shift`]): in quadrature, the bias being a size, not a sign.
 pub(super) fn widened(se: &DVector<f64>, bias: &DVector<f64>) -> DVector<f64> {
     DVector::from_fn(se.len(), |k, _| {
         (1.96 * se[k]).hypot(bias.get(k).copied().unwrap_or(0.0))
