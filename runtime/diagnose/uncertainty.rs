@@ -124,11 +124,52 @@ pub(super) fn fit_robust(
 /// 95% half-widths from normal-equivalent standard errors `se` and a bias
 /// `bias` the data cannot rule out (how far the parameters move when the
 /// fit is given what the named model lacks, see `supported::bias` and
-/// [`rest_shift`]): in quadrature, the bias being a size, not a sign.
+/// [`rest_shift`]): the bias-aware interval of Armstrong and Kolesar
+/// (2020), which covers 95% for any bias up to that size: the half-width
+/// c se with P(|Z + bias / se| <= c) = 0.95, Z standard normal (1.96 se
+/// without bias, about bias + 1.645 se for a large one).
 pub(super) fn widened(se: &DVector<f64>, bias: &DVector<f64>) -> DVector<f64> {
     DVector::from_fn(se.len(), |k, _| {
-        (1.96 * se[k]).hypot(bias.get(k).copied().unwrap_or(0.0))
+        let b = bias.get(k).copied().unwrap_or(0.0).abs();
+        if se[k] > 0.0 {
+            se[k] * bias_aware_critical(b / se[k])
+        } else {
+            b
+        }
     })
+}
+
+/// The c with P(|Z + t| <= c) = 0.95 for a standard normal Z, by
+/// bisection between 1.96 (t = 0) and t + 1.96.
+fn bias_aware_critical(t: f64) -> f64 {
+    let covered = |c: f64| normal_cdf(c - t) - normal_cdf(-c - t);
+    let (mut low, mut high) = (1.96, t + 1.96);
+    for _ in 0..60 {
+        let mid = 0.5 * (low + high);
+        if covered(mid) < 0.95 {
+            low = mid;
+        } else {
+            high = mid;
+        }
+    }
+    high
+}
+
+/// The standard normal CDF (Abramowitz and Stegun 7.1.26 for erf, within
+/// 1.5e-7).
+fn normal_cdf(x: f64) -> f64 {
+    let z = x.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * z);
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let erf = 1.0 - poly * (-z * z).exp();
+    if x >= 0.0 {
+        0.5 * (1.0 + erf)
+    } else {
+        0.5 * (1.0 - erf)
+    }
 }
 
 /// 95% half-widths of the parameters from the leave-one-trajectory-out
@@ -250,6 +291,16 @@ pub(super) fn student_t975(dof: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bias_aware_critical_values_span_normal_to_shifted() {
+        assert!((normal_cdf(1.96) - 0.975_002).abs() < 1e-6);
+        assert!((bias_aware_critical(0.0) - 1.96).abs() < 1e-4);
+        // P(|Z + 1| <= c) = 0.95 at c = 2.65 (tables of the folded normal).
+        assert!((bias_aware_critical(1.0) - 2.65).abs() < 0.01);
+        let large = bias_aware_critical(10.0);
+        assert!((large - 11.645).abs() < 0.01, "{large}");
+    }
 
     #[test]
     fn student_quantiles_fall_towards_the_normal() {
