@@ -305,7 +305,7 @@ fn coverage_study() {
 }
 
 /// The default virtual robot (three recordings of `sdnn simulate --count
-/// 3`), whose six friction intervals all excluded the truth before the
+/// 3`), four of whose six friction intervals excluded the truth before the
 /// intervals counted model error (viscous 0.321, 95% CI 0.302 .. 0.340 on
 /// joint 1, true 0.35), and two fixed random cases: at least 85% of the
 /// named parameters covered, the armature reported.
