@@ -16,6 +16,7 @@ mod hidden_effects;
 mod hostile;
 mod hostile2;
 mod inertial;
+mod intervals;
 mod lumping;
 mod module_graph;
 mod pointwise;

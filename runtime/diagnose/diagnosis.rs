@@ -72,6 +72,14 @@ pub struct Diagnosis {
     /// this is what the effects explain physically.
     pub mse_after_fitted: Vec<f64>,
     pub effects: Vec<Effect>,
+    /// Effects the data support that were not named (adding one to the
+    /// named effects lowers some joint's held-out MSE by at least the gain
+    /// floor, its parameters are identifiable beside them and its fit is
+    /// physical, but it is not significant, removes less than the minimum
+    /// gain, or was dropped), with their values and 95% intervals fitted
+    /// with the named effects; most held-out error removed first.
+    /// `ambiguous_with`, `unconstrained`, `modelled` and `total` are unset.
+    pub supported: Vec<Effect>,
     /// Structure left in the residual that no candidate explains.
     pub unexplained: Vec<Unexplained>,
     /// How well these data separate the named effects' parameters.

@@ -19,8 +19,10 @@
 //! that cuts the most error over all joints), while it lowers it
 //! by at least `min_gain` and its parameters are significant (|t| > 3, each
 //! with the larger of its least-squares and its delete-one-segment
-//! jackknife standard error, as are the reported 95% intervals). What no
-//! candidate explains is reported as [`Unexplained`].
+//! jackknife standard error; the reported 95% intervals add the bias the
+//! data cannot rule out, see `supported.rs`). An effect the data support that
+//! is not named is listed with its interval (`Diagnosis::supported`). What
+//! no candidate explains is reported as [`Unexplained`].
 //! A fit with a physically impossible sign (negative friction, armature or
 //! payload mass) is never named as that effect: it is reported as a note
 //! (e.g. a negative "armature" means the model's inertia about that joint is
@@ -100,6 +102,7 @@ mod select;
 mod settings;
 mod shape;
 mod stacked;
+mod supported;
 mod text;
 mod uncertainty;
 mod unconstrained;
@@ -340,11 +343,21 @@ pub fn diagnose(
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
+    let supported = supported::supported(&moments, data.dof, &candidates, &selected, settings);
+    let width: usize = selected
+        .iter()
+        .map(|&c| candidate::width(&candidates[c]))
+        .sum();
     let mut effects = describe(
         &moments,
         &candidates,
         &selected,
         settings.com_resolution * size,
+        &supported::bias(
+            &supported,
+            supported::timing_shift(&moments, &candidates, &selected),
+            width,
+        ),
         &mut notes,
     );
     for (effect, &c) in effects.iter_mut().zip(&selected) {
@@ -407,6 +420,7 @@ pub fn diagnose(
         mse_after,
         mse_after_fitted,
         effects,
+        supported: supported::listed(&candidates, &supported, settings.com_resolution * size),
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         sanity,

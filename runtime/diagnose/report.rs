@@ -11,7 +11,7 @@ use super::kind::Kind;
 use super::moments::Moments;
 use super::shape::physically_consistent;
 use super::stacked::Stacked;
-use super::uncertainty::fit_robust;
+use super::uncertainty::{fit_robust, rest_shift, widened};
 
 /// The residuals before and after subtracting what the selected effects,
 /// fitted to all data, add to the model (as the applied model computes it).
@@ -44,7 +44,9 @@ pub(super) fn residual_samples(
     }
 }
 
-/// The named effects with their parameters, 95% intervals and the held-out
+/// The named effects with their parameters, 95% intervals (the sampling
+/// error widened by `bias` and the move of [`rest_shift`], see
+/// [`widened`]) and the held-out
 /// MSE each removes, counted in selection order (the first effect's whole
 /// drop, then what each next one adds), so the parts add up to the drop
 /// the report shows.
@@ -53,11 +55,17 @@ pub(super) fn describe(
     candidates: &[Candidate],
     selected: &[usize],
     resolution: f64,
+    bias: &DVector<f64>,
     notes: &mut Vec<String>,
 ) -> Vec<Effect> {
     let Some((fit, se)) = fit_robust(m, candidates, selected) else {
         return Vec::new();
     };
+    // The move when friction below the at-rest speed is left free adds to
+    // the other probes' (docs/diagnosis.md, "How far the intervals hold").
+    let rest = rest_shift(m, candidates, selected, &fit);
+    let bias = bias.zip_map(&rest, |b, r| b + r.abs());
+    let half = widened(&se, &bias);
     let removals = heldout_removals(m, candidates, selected);
     let mut offset = 0;
     let mut effects = Vec::new();
@@ -65,7 +73,7 @@ pub(super) fn describe(
         let candidate = &candidates[c];
         let w = width(candidate);
         let values: Vec<(f64, f64)> = (offset..offset + w)
-            .map(|k| (fit.theta[k], 1.96 * se[k]))
+            .map(|k| (fit.theta[k], half[k]))
             .collect();
         offset += w;
         let mut effect = effect(candidate, &values, resolution, notes);

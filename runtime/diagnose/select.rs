@@ -410,7 +410,7 @@ fn one_body(
 /// Whether a candidate may compete given the effects already named: an
 /// asymmetry of dry friction only on a joint that has Coulomb friction, one
 /// inertial error per link.
-fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
+pub(super) fn admissible(candidates: &[Candidate], c: usize, selected: &[usize]) -> bool {
     let candidate = &candidates[c];
     if candidate.kind == Kind::InertialError
         && selected.iter().any(|&s| {

@@ -75,6 +75,7 @@ impl Diagnosis {
         for e in &self.effects {
             let _ = writeln!(out, "  {}", self.effect_line(e));
         }
+        self.supported_lines(&mut out);
         if let Some(condition) = self.identifiability.condition_number {
             let _ = writeln!(
                 out,
@@ -155,7 +156,33 @@ impl Diagnosis {
     }
 }
 
+/// Supported but unnamed effects printed; the rest are in the JSON.
+const SUPPORTED_SHOWN: usize = 5;
+
 impl Diagnosis {
+    /// The effects the data support that were not named, most held-out
+    /// error first, so a small effect is never silently dropped.
+    fn supported_lines(&self, out: &mut String) {
+        if self.supported.is_empty() {
+            return;
+        }
+        let _ = writeln!(
+            out,
+            "supported by the data but not named (interval excludes zero, held-out error \
+             drops, below the naming bar; fitted with the named effects):"
+        );
+        for e in self.supported.iter().take(SUPPORTED_SHOWN) {
+            let _ = writeln!(out, "  {}", self.effect_line(e));
+        }
+        if self.supported.len() > SUPPORTED_SHOWN {
+            let _ = writeln!(
+                out,
+                "  and {} more (--format json: supported)",
+                self.supported.len() - SUPPORTED_SHOWN
+            );
+        }
+    }
+
     /// For an effect the model already has on the joint: the values above
     /// are what is missing, added to the model's (what `--apply` writes).
     fn correction_text(&self, e: &Effect) -> String {

@@ -3,7 +3,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::candidate::{Candidate, columns_of};
+use super::candidate::{Candidate, Shape, columns_of};
 use super::fit::{Fit, fit, pseudo_solve};
 use super::moments::{Moments, sse_per_joint};
 
@@ -121,6 +121,57 @@ pub(super) fn fit_robust(
     Some((fit, se))
 }
 
+/// 95% half-widths from normal-equivalent standard errors `se` and a bias
+/// `bias` the data cannot rule out (how far the parameters move when the
+/// fit is given what the named model lacks, see `supported::bias` and
+/// [`rest_shift`]): the bias-aware interval of Armstrong and Kolesar
+/// (2020), which covers 95% for any bias up to that size: the half-width
+/// c se with P(|Z + bias / se| <= c) = 0.95, Z standard normal (1.96 se
+/// without bias, about bias + 1.645 se for a large one).
+pub(super) fn widened(se: &DVector<f64>, bias: &DVector<f64>) -> DVector<f64> {
+    DVector::from_fn(se.len(), |k, _| {
+        let b = bias.get(k).copied().unwrap_or(0.0).abs();
+        if se[k] > 0.0 {
+            se[k] * bias_aware_critical(b / se[k])
+        } else {
+            b
+        }
+    })
+}
+
+/// The c with P(|Z + t| <= c) = 0.95 for a standard normal Z, by
+/// bisection between 1.96 (t = 0) and t + 1.96.
+fn bias_aware_critical(t: f64) -> f64 {
+    let covered = |c: f64| normal_cdf(c - t) - normal_cdf(-c - t);
+    let (mut low, mut high) = (1.96, t + 1.96);
+    for _ in 0..60 {
+        let mid = 0.5 * (low + high);
+        if covered(mid) < 0.95 {
+            low = mid;
+        } else {
+            high = mid;
+        }
+    }
+    high
+}
+
+/// The standard normal CDF (Abramowitz and Stegun 7.1.26 for erf, within
+/// 1.5e-7).
+fn normal_cdf(x: f64) -> f64 {
+    let z = x.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * z);
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let erf = 1.0 - poly * (-z * z).exp();
+    if x >= 0.0 {
+        0.5 * (1.0 + erf)
+    } else {
+        0.5 * (1.0 - erf)
+    }
+}
+
 /// 95% half-widths of the parameters from the leave-one-trajectory-out
 /// fits (delete-one jackknife over trajectories, Student t with G - 1
 /// degrees of freedom): unlike the least-squares standard errors they hold
@@ -149,6 +200,79 @@ pub(super) fn jackknife_half_widths(
     }))
 }
 
+/// Per parameter, how much the fit moves when the friction of a joint
+/// that moves slower than its at-rest speed is left free: each column with
+/// an applied version (Coulomb friction: the plain sign(qd), also in that
+/// band, against the fitted column's zero there) gets that version as a
+/// second column, so the band's torque has its own coefficient and the
+/// level is the two coefficients' sum. Neither column knows how friction
+/// behaves near zero speed (static, creeping, the simulator's or the arm's
+/// own law); the move is what that ignorance can cost the fitted levels
+/// and, through them, the viscous coefficients. Linear candidates are
+/// refitted with the others' coefficients held; theirs count zero.
+pub(super) fn rest_shift(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    fit: &Fit,
+) -> DVector<f64> {
+    let columns = columns_of(candidates, selected);
+    let mut linear = Vec::new();
+    for &c in selected {
+        let is_linear = matches!(
+            candidates[c].shape,
+            Shape::Linear | Shape::Delay { .. } | Shape::Asymmetry { .. }
+        );
+        linear.extend(std::iter::repeat_n(is_linear, candidates[c].columns.len()));
+    }
+    let free: Vec<usize> = (0..columns.len()).filter(|&k| linear[k]).collect();
+    let held: Vec<usize> = (0..columns.len()).filter(|&k| !linear[k]).collect();
+    let band: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&k| m.applied[columns[k]] != columns[k])
+        .collect();
+    if band.is_empty() {
+        return DVector::zeros(fit.theta.len());
+    }
+    // Free columns, then each banded column's applied version, then the
+    // held ones.
+    let all: Vec<usize> = free
+        .iter()
+        .map(|&k| columns[k])
+        .chain(band.iter().map(|&k| m.applied[columns[k]]))
+        .chain(held.iter().map(|&k| columns[k]))
+        .collect();
+    let (a, b) = m.normal_equations(&all, |_| true);
+    let solved = free.len() + band.len();
+    let inside: Vec<usize> = (0..solved).collect();
+    let outside: Vec<usize> = (solved..all.len()).collect();
+    let rhs = b.select_rows(&inside)
+        - a.select_rows(&inside).select_columns(&outside) * fit.coefficients.select_rows(&held);
+    let refit = pseudo_solve(&a.select_rows(&inside).select_columns(&inside), &rhs);
+    let mut coefficient = fit.coefficients.clone();
+    for (i, &k) in free.iter().enumerate() {
+        coefficient[k] = refit[i];
+    }
+    for (i, &k) in band.iter().enumerate() {
+        coefficient[k] += refit[free.len() + i];
+    }
+    // Linear candidates' parameters are their coefficients, in order.
+    let mut shift = DVector::zeros(fit.theta.len());
+    let (mut column, mut parameter) = (0, 0);
+    for &c in selected {
+        let count = candidates[c].columns.len();
+        if linear[column] {
+            for k in 0..count {
+                shift[parameter + k] = coefficient[column + k] - fit.coefficients[column + k];
+            }
+        }
+        column += count;
+        parameter += super::candidate::width(&candidates[c]);
+    }
+    shift
+}
+
 /// The 97.5% quantile of Student's t with `dof` degrees of freedom.
 pub(super) fn student_t975(dof: usize) -> f64 {
     const TABLE: [f64; 30] = [
@@ -167,6 +291,16 @@ pub(super) fn student_t975(dof: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bias_aware_critical_values_span_normal_to_shifted() {
+        assert!((normal_cdf(1.96) - 0.975_002).abs() < 1e-6);
+        assert!((bias_aware_critical(0.0) - 1.96).abs() < 1e-4);
+        // P(|Z + 1| <= c) = 0.95 at c = 2.65 (tables of the folded normal).
+        assert!((bias_aware_critical(1.0) - 2.65).abs() < 0.01);
+        let large = bias_aware_critical(10.0);
+        assert!((large - 11.645).abs() < 0.01, "{large}");
+    }
 
     #[test]
     fn student_quantiles_fall_towards_the_normal() {

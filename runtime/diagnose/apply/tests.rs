@@ -22,6 +22,7 @@ fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
         mse_after: vec![],
         mse_after_fitted: vec![],
         effects,
+        supported: Vec::new(),
         unexplained: vec![],
         identifiability: Default::default(),
         notes: vec![],
