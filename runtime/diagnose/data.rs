@@ -3,6 +3,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Columns, Shape, candidates};
+use super::reversals::Stage;
 use super::search::stribeck_velocities;
 use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
@@ -173,17 +174,19 @@ impl Rows {
 /// fitted column with the torque's filter (parallel filtering), trims filter
 /// transients, decimates and cuts the recordings into cross-validation
 /// segments (`segments` per recording, or chosen by [`segment_counts`]).
+/// Stribeck friction is a candidate at the reversal stage only (a less
+/// decimated pipeline, see [`super::reversals`]).
 pub(super) fn stack(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
     pipeline: &Pipeline,
     settings: &Settings,
+    stage: Stage,
 ) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
     let n = model.dof();
-    let velocities = if settings.stribeck {
-        stribeck_velocities()
-    } else {
-        Vec::new()
+    let velocities = match stage {
+        Stage::Reversals => stribeck_velocities(),
+        Stage::Motion => Vec::new(),
     };
     let tilted = tilted_models(model);
     let levers = crate::dynamics::joint_levers(model);
@@ -290,6 +293,7 @@ pub(super) fn stack(
         group,
         dof: n,
         levers,
+        rest: at_rest.clone(),
     };
     let columns = Columns {
         own: all.own.map(DVector::from_vec),

@@ -94,11 +94,13 @@ mod modelled;
 mod moments;
 pub mod plots;
 mod report;
+mod reversals;
 mod sanity;
 mod search;
 mod select;
 mod settings;
 mod shape;
+mod stribeck;
 mod stacked;
 mod text;
 mod uncertainty;
@@ -289,7 +291,8 @@ pub fn diagnose(
     if settings.sanity_gate {
         sanity::refuse(model, &misplaced)?;
     }
-    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings)?;
+    let (data, mut candidates, layout) =
+        stack(model, recordings, pipeline, &settings, reversals::Stage::Motion)?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(
@@ -325,6 +328,11 @@ pub fn diagnose(
     }
     let (mut selected, mut notes) = (selection.selected, selection.notes);
     drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
+    let motion = reversals::Motion {
+        candidates: &candidates,
+        selected: &selected,
+    };
+    let stribeck = stribeck::at_reversals(model, recordings, pipeline, settings, motion)?;
     let alternatives: Vec<_> = selection
         .alternatives
         .into_iter()
@@ -378,6 +386,7 @@ pub fn diagnose(
             label(&candidates[c])
         ));
     }
+    stribeck::merge(stribeck, &mut effects, &mut notes);
     modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);

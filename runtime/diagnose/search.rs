@@ -194,6 +194,7 @@ pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVec
         group: (0..samples).map(|s| s * 4 / samples).collect(),
         dof: 1,
         levers: vec![1.0],
+        rest: vec![0.02],
     };
     (data, q, qd)
 }
