@@ -3,7 +3,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Columns, Shape, candidates};
-use super::reversals::Stage;
+use super::reversals::{Needs, Stage};
 use super::search::stribeck_velocities;
 use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
@@ -134,12 +134,19 @@ impl Rows {
             .chain(&self.stribeck)
     }
 
-    /// Empty rows with every column (`stribeck` Stribeck velocities).
-    fn with_columns(dof: usize, capacity: usize, stribeck: usize) -> Rows {
+    /// Empty rows with every column of `stage`: Stribeck columns for each
+    /// velocity of the grid at the reversal stage, the generic features of
+    /// the unexplained-structure check at the motion stage; the links'
+    /// inertial columns with `bodies`.
+    fn with_columns(dof: usize, capacity: usize, (stage, bodies): (Stage, bool)) -> Rows {
+        let (stribeck, generic) = match stage {
+            Stage::Reversals => (stribeck_velocities().len(), 0),
+            Stage::Motion => (0, GENERIC_FEATURES.len()),
+        };
         Rows {
-            inertial: vec![Vec::with_capacity(capacity); 10 * dof],
-            generic: vec![Vec::with_capacity(capacity); GENERIC_FEATURES.len()],
-            stribeck: vec![Vec::with_capacity(capacity); 2 * stribeck],
+            inertial: vec![Vec::with_capacity(capacity); if bodies { 10 * dof } else { 0 }],
+            generic: vec![Vec::with_capacity(capacity); generic],
+            stribeck: vec![Vec::with_capacity(capacity); stribeck],
             ..Rows::default()
         }
     }
@@ -175,20 +182,23 @@ impl Rows {
 /// transients, decimates and cuts the recordings into cross-validation
 /// segments (`segments` per recording, or chosen by [`segment_counts`]).
 /// Stribeck friction is a candidate at the reversal stage only (a less
-/// decimated pipeline, see [`super::reversals`]).
+/// decimated pipeline, see [`super::reversals`]; `reversal` says what it
+/// needs of the motion stage's choices: the ripple's harmonic is given, and
+/// a link's or the tilt's columns are built only for a named one).
 pub(super) fn stack(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
     pipeline: &Pipeline,
     settings: &Settings,
-    stage: Stage,
+    reversal: Option<&Needs>,
 ) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
     let n = model.dof();
-    let velocities = match stage {
-        Stage::Reversals => stribeck_velocities(),
-        Stage::Motion => Vec::new(),
+    let stage = match reversal {
+        Some(_) => Stage::Reversals,
+        None => Stage::Motion,
     };
-    let tilted = tilted_models(model);
+    let bodies = reversal.is_none_or(|r| r.bodies);
+    let tilted = tilted_models(model).filter(|_| reversal.is_none_or(|r| r.tilt));
     let levers = crate::dynamics::joint_levers(model);
     let moving: Vec<f64> = levers.iter().map(|lever| MOVING * lever).collect();
     let mut kept = Vec::new();
@@ -215,7 +225,7 @@ pub(super) fn stack(
                 for (largest, r) in at_rest.iter_mut().zip(&rest) {
                     *largest = largest.max(*r);
                 }
-                let mut rows = rows(model, models(&tilted), &traj, &rest, &velocities, &levers)?;
+                let mut rows = rows(model, models(&tilted), &traj, &rest, (stage, bodies), &levers)?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -229,7 +239,7 @@ pub(super) fn stack(
                     *largest = largest.max(*r);
                 }
                 (
-                    rows(model, models(&tilted), &traj, &rest, &velocities, &levers)?,
+                    rows(model, models(&tilted), &traj, &rest, (stage, bodies), &levers)?,
                     (0..traj.len()).collect(),
                     dt,
                 )
@@ -252,7 +262,7 @@ pub(super) fn stack(
         Some(k) => vec![k; kept.len()],
         None => segment_counts(&durations),
     };
-    let mut all = Rows::with_columns(n, 0, velocities.len());
+    let mut all = Rows::with_columns(n, 0, (stage, bodies));
     let mut group = Vec::new();
     for ((rows, &count), &seconds) in kept.iter().zip(&counts).zip(&durations) {
         let samples = rows.residual.len() / n;
@@ -306,6 +316,7 @@ pub(super) fn stack(
         stribeck: stribeck_pairs(all.stribeck),
         rest: at_rest,
         modelled_ripple: super::modelled::ripple_cycles(&super::modelled::joint_effects(model)),
+        ripple_given: reversal.map(|r| r.ripple.clone()),
     };
     let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout))
@@ -338,7 +349,7 @@ fn rows(
     tilted: Option<&[Model; 3]>,
     traj: &Trajectory,
     rest: &[f64],
-    velocities: &[f64],
+    (stage, bodies): (Stage, bool),
     levers: &[f64],
 ) -> anyhow::Result<Rows> {
     let n = model.dof();
@@ -346,13 +357,20 @@ fn rows(
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
-    let mut rows = Rows::with_columns(n, traj.len() * n, velocities.len());
+    let mut rows = Rows::with_columns(n, traj.len() * n, (stage, bodies));
+    let velocities = match stage {
+        Stage::Reversals => stribeck_velocities(),
+        Stage::Motion => Vec::new(),
+    };
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
     for s in 0..traj.len() {
         let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
         let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));
-        let y = model.regressor(&q, &qd, &qdd)?;
+        let y = match bodies {
+            true => model.regressor(&q, &qd, &qdd)?,
+            false => DMatrix::zeros(0, 0),
+        };
         let load = model.gravity(&q)?;
         let tilt = tilted.map(|m| m.each_ref().map(|m| oracle::gravity(m, &q)));
         for i in 0..n {
@@ -378,11 +396,8 @@ fn rows(
                 column.push(tilt.as_ref().map_or(0.0, |t| t[k][i]));
             }
             rows.measured_rate.push(measured_rate[(s, i)]);
-            let (fitted, applied) = rows.stribeck.split_at_mut(velocities.len());
-            for ((fitted, applied), v) in fitted.iter_mut().zip(applied).zip(velocities) {
-                let fading = (-(qd[i] / (v * levers[i])).powi(2)).exp();
-                fitted.push(sign * fading);
-                applied.push(coulomb_sign(qd[i]) * fading);
+            for (fitted, v) in rows.stribeck.iter_mut().zip(&velocities) {
+                fitted.push(sign * (-(qd[i] / (v * levers[i])).powi(2)).exp());
             }
         }
     }
@@ -390,12 +405,16 @@ fn rows(
 }
 
 /// The stacked Stribeck columns as (fitted, applied) pairs per velocity.
-fn stribeck_pairs(mut columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
-    let applied = columns.split_off(columns.len() / 2);
+/// The reversal stage scores the fitted columns only (it names what the
+/// physics explains; the report says how the generated model applies it),
+/// so both are the fitted one.
+fn stribeck_pairs(columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
     columns
         .into_iter()
-        .zip(applied)
-        .map(|(f, a)| (DVector::from_vec(f), DVector::from_vec(a)))
+        .map(|f| {
+            let f = DVector::from_vec(f);
+            (f.clone(), f)
+        })
         .collect()
 }
 

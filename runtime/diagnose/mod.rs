@@ -292,7 +292,7 @@ pub fn diagnose(
         sanity::refuse(model, &misplaced)?;
     }
     let (data, mut candidates, layout) =
-        stack(model, recordings, pipeline, &settings, reversals::Stage::Motion)?;
+        stack(model, recordings, pipeline, &settings, None)?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(

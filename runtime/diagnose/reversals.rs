@@ -74,6 +74,33 @@ pub(super) fn pipeline(motion: &Pipeline) -> Option<Pipeline> {
     })
 }
 
+/// What the reversal stage needs of the motion stage's choices: each
+/// joint's ripple harmonic (not searched again), and whether a link's or
+/// the tilt's columns are needed (the stack builds them only then).
+pub(super) struct Needs {
+    pub(super) ripple: Vec<Option<f64>>,
+    pub(super) bodies: bool,
+    pub(super) tilt: bool,
+}
+
+impl Needs {
+    fn of(dof: usize, motion: &Motion) -> Needs {
+        let named = || motion.selected.iter().map(|&c| &motion.candidates[c]);
+        Needs {
+            ripple: (0..dof)
+                .map(|j| {
+                    named().find_map(|c| {
+                        (c.kind == Kind::TorqueRipple && c.joint == Some(j))
+                            .then(|| c.settings[0].1)
+                    })
+                })
+                .collect(),
+            bodies: named().any(|c| c.link.is_some()),
+            tilt: named().any(|c| c.kind == Kind::GravityDirection),
+        }
+    }
+}
+
 /// What the reversal stage found: the Stribeck friction it names, the
 /// refitted values of the friction already named on those joints, notes.
 #[derive(Default)]
@@ -107,7 +134,8 @@ pub(super) fn stribeck(
     let Some(band) = pipeline(motion_pipeline).filter(|_| !joints.is_empty()) else {
         return Ok(found);
     };
-    let (mut data, all, _) = stack(model, recordings, &band, &settings, Stage::Reversals)?;
+    let needs = Needs::of(model.dof(), &motion);
+    let (mut data, all, _) = stack(model, recordings, &band, &settings, Some(&needs))?;
     let mut list: Vec<Candidate> = motion
         .selected
         .iter()
