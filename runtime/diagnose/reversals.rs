@@ -51,8 +51,7 @@ pub(super) enum Stage {
 
 /// The reversal band's cut-off for a motion cut-off and a sample rate, Hz.
 pub fn cutoff(motion_cutoff_hz: f64, sample_rate_hz: f64) -> f64 {
-    let factor: f64 = std::env::var("SDNN_BAND").ok().and_then(|v| v.parse().ok()).unwrap_or(BAND_PER_CUTOFF);
-    (factor * motion_cutoff_hz)
+    (BAND_PER_CUTOFF * motion_cutoff_hz)
         .min(MAX_CUTOFF_PER_RATE * sample_rate_hz)
         .max(motion_cutoff_hz)
 }
@@ -164,13 +163,6 @@ pub(super) fn stribeck(
         let mse = cv_mse(&m, dof, &list, &trial, Scoring::Fitted);
         let gain = relative_gain(&current[j..=j], &mse[j..=j], &initial[j..=j]);
         let gain = Gain { joint: j, ..gain };
-        if std::env::var("SDNN_DEBUG").is_ok() {
-            let full = fit(&m, &list, &trial, |_| true);
-            eprintln!(
-                "reversals j{j}: cur {:?} trial {:?} initial {:?} gain {:.3} theta {:?} v {:?}",
-                current, mse, initial, gain.share, full.map(|f| f.theta.as_slice().to_vec()), list[c].settings
-            );
-        }
         if gain.share < settings.min_gain {
             continue;
         }
