@@ -163,6 +163,13 @@ pub(super) fn stribeck(
         let mse = cv_mse(&m, dof, &list, &trial, Scoring::Fitted);
         let gain = relative_gain(&current[j..=j], &mse[j..=j], &initial[j..=j]);
         let gain = Gain { joint: j, ..gain };
+        if std::env::var("SDNN_DEBUG").is_ok() {
+            let full = fit(&m, &list, &trial, |_| true);
+            eprintln!(
+                "reversals j{j}: cur {:?} trial {:?} initial {:?} gain {:.3} theta {:?} v {:?}",
+                current, mse, initial, gain.share, full.map(|f| f.theta.as_slice().to_vec()), list[c].settings
+            );
+        }
         if gain.share < settings.min_gain {
             continue;
         }
