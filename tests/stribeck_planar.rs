@@ -267,18 +267,3 @@ fn clean_data_name_nothing() {
     let d = diagnosed(Friction::NONE, true, 3);
     assert!(d.effects.is_empty(), "{:?}", named(&d));
 }
-
-#[test]
-#[ignore]
-fn dump() {
-    let friction = Friction { sliding: 0.16, static_: 0.39, velocity: 0.08, viscous: 0.1 };
-    for s in 0..3 {
-        let t = record(friction, 7 + s, false);
-        let mut out = String::from("t,q1,q2,qd1,qd2,tau1,tau2\n");
-        for k in 0..t.len() {
-            out += &format!("{},{},{},{},{},{},{}\n", t.t()[k], t.q()[(k,0)], t.q()[(k,1)], t.qd()[(k,0)], t.qd()[(k,1)], t.tau()[(k,0)], t.tau()[(k,1)]);
-        }
-        std::fs::write(format!("/tmp/sb/planar_{s}.csv"), out).unwrap();
-    }
-    std::fs::write("/tmp/sb/planar.toml", DESCRIPTION).unwrap();
-}

@@ -3,7 +3,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Columns, Shape, candidates};
-use super::reversals::{Needs, Stage};
+use super::band::{self, Band, Needs, Stage};
 use super::search::stribeck_velocities;
 use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
@@ -221,11 +221,17 @@ pub(super) fn stack(
                 // the torque filter, so every column is compared exactly.
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
-                let rest = rest_velocities(raw, &traj, &settings, &moving);
-                for (largest, r) in at_rest.iter_mut().zip(&rest) {
+                let band = match stage {
+                    Stage::Motion => Band::of(&traj, &rest_velocities(raw, &traj, &settings, &moving)),
+                    Stage::Reversals => {
+                        let band_hz = reversal.map_or(0.0, |r| r.band_hz);
+                        band::velocity(raw, &settings, &moving, band_hz)?
+                    }
+                };
+                for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
                     *largest = largest.max(*r);
                 }
-                let mut rows = rows(model, models(&tilted), &traj, &rest, (stage, bodies), &levers)?;
+                let mut rows = rows(model, models(&tilted), &traj, &band, (stage, bodies), &levers)?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -234,12 +240,12 @@ pub(super) fn stack(
             _ => {
                 let traj = settings.apply(raw)?;
                 let dt = step(&traj);
-                let rest = moving.clone();
                 for (largest, r) in at_rest.iter_mut().zip(&moving) {
                     *largest = largest.max(*r);
                 }
+                let band = Band::of(&traj, &moving);
                 (
-                    rows(model, models(&tilted), &traj, &rest, (stage, bodies), &levers)?,
+                    rows(model, models(&tilted), &traj, &band, (stage, bodies), &levers)?,
                     (0..traj.len()).collect(),
                     dt,
                 )
@@ -342,13 +348,14 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
 }
 
 /// The model's residual and candidate columns at every sample of `traj`.
-/// `rest[j]`: joint j's speed below which it counts as at rest (see
-/// [`rest_velocities`]); Stribeck columns for each of `velocities`.
+/// The dry-friction columns (Coulomb's moving sign, Stribeck's for each
+/// velocity of the grid at the reversal stage) follow `band`'s velocity and
+/// at-rest speeds (see [`rest_velocities`]).
 fn rows(
     model: &dyn Dynamics,
     tilted: Option<&[Model; 3]>,
     traj: &Trajectory,
-    rest: &[f64],
+    band: &Band,
     (stage, bodies): (Stage, bool),
     levers: &[f64],
 ) -> anyhow::Result<Rows> {
@@ -377,11 +384,14 @@ fn rows(
             let tau = traj.tau()[(s, i)];
             rows.residual.push(tau - predicted[(s, i)]);
             rows.measured.push(tau);
-            rows.qd.push(qd[i]);
+            // The dry-friction columns follow the velocity that resolves
+            // reversals (the states' own at the motion stage).
+            let resolved = band.qd[(s, i)];
+            rows.qd.push(resolved);
             rows.qdd.push(qdd[i]);
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
-            let sign = moving_sign(qd[i], rest[i]);
+            let sign = moving_sign(resolved, band.rest[i]);
             for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i]].into_iter().enumerate() {
                 rows.own[k].push(v);
             }
@@ -397,7 +407,7 @@ fn rows(
             }
             rows.measured_rate.push(measured_rate[(s, i)]);
             for (fitted, v) in rows.stribeck.iter_mut().zip(&velocities) {
-                fitted.push(sign * (-(qd[i] / (v * levers[i])).powi(2)).exp());
+                fitted.push(sign * (-(resolved / (v * levers[i])).powi(2)).exp());
             }
         }
     }

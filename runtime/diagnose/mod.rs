@@ -79,6 +79,7 @@
 //! couplings with the first joint), so the torques barely depend on it.
 
 mod admit;
+mod band;
 mod alternatives;
 pub mod apply;
 mod candidate;

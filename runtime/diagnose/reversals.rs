@@ -30,75 +30,9 @@ use super::settings::Settings;
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 use crate::dynamics::Dynamics;
-use crate::preprocess::{Pipeline, Preprocess};
+use super::band::{Needs, pipeline};
+use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
-
-/// The reversal band's cut-off over the motion stage's: a decade above it,
-/// so a breakaway of a tenth of the motion's period is passed.
-pub const BAND_PER_CUTOFF: f64 = 10.0;
-/// Highest reversal cut-off as a share of the sample rate (the auto
-/// preset's bound on any cut-off).
-const MAX_CUTOFF_PER_RATE: f64 = 0.2;
-
-/// Which stage a stack is built for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Stage {
-    /// The motion band: every kind competes but Stribeck friction.
-    Motion,
-    /// The reversal band: Stribeck friction is a candidate on every joint.
-    Reversals,
-}
-
-/// The reversal band's cut-off for a motion cut-off and a sample rate, Hz.
-pub fn cutoff(motion_cutoff_hz: f64, sample_rate_hz: f64) -> f64 {
-    (BAND_PER_CUTOFF * motion_cutoff_hz)
-        .min(MAX_CUTOFF_PER_RATE * sample_rate_hz)
-        .max(motion_cutoff_hz)
-}
-
-/// The pipeline of the reversal stage: the auto preset's filter at the
-/// reversal cut-off, decimated to ten times it; `None` for other presets
-/// (their filters are not a cut-off to raise: Stribeck friction is then not
-/// tried).
-pub(super) fn pipeline(motion: &Pipeline) -> Option<Pipeline> {
-    let mut choice = motion.choice.clone()?;
-    choice.cutoff_hz = cutoff(choice.cutoff_hz, choice.sample_rate_hz);
-    choice.decimated_rate_hz = (crate::preprocess::auto::RATE_PER_CUTOFF * choice.cutoff_hz)
-        .min(choice.sample_rate_hz);
-    let settings = Preprocess::identification(&choice, choice.sample_rate_hz);
-    Some(Pipeline {
-        choice: Some(choice),
-        settings,
-        ..motion.clone()
-    })
-}
-
-/// What the reversal stage needs of the motion stage's choices: each
-/// joint's ripple harmonic (not searched again), and whether a link's or
-/// the tilt's columns are needed (the stack builds them only then).
-pub(super) struct Needs {
-    pub(super) ripple: Vec<Option<f64>>,
-    pub(super) bodies: bool,
-    pub(super) tilt: bool,
-}
-
-impl Needs {
-    fn of(dof: usize, motion: &Motion) -> Needs {
-        let named = || motion.selected.iter().map(|&c| &motion.candidates[c]);
-        Needs {
-            ripple: (0..dof)
-                .map(|j| {
-                    named().find_map(|c| {
-                        (c.kind == Kind::TorqueRipple && c.joint == Some(j))
-                            .then(|| c.settings[0].1)
-                    })
-                })
-                .collect(),
-            bodies: named().any(|c| c.link.is_some()),
-            tilt: named().any(|c| c.kind == Kind::GravityDirection),
-        }
-    }
-}
 
 /// What the reversal stage found: the Stribeck friction it names, the
 /// refitted values of the friction already named on those joints, notes.
@@ -116,71 +50,119 @@ pub(super) struct Motion<'a> {
     pub(super) selected: &'a [usize],
 }
 
-/// Stribeck friction on each of `joints`, judged at the reversal stage
-/// beside the effects the motion stage named, in joint order, on the rows
-/// where the joint moves (at rest friction is static: no law of the speed
-/// predicts it, and the fitted dry-friction columns are zero there, so
-/// those rows would only dilute the gain with what no candidate explains).
+/// One pass of the reversal stage: the motion stage's named effects and
+/// the Stribeck candidates of the joints tried, on the rows where their
+/// joint moves.
+struct Pass {
+    list: Vec<Candidate>,
+    /// Per joint tried, its Stribeck candidate in `list`.
+    tried: Vec<(usize, usize)>,
+    m: Moments,
+    dof: usize,
+    initial: Vec<f64>,
+}
+
+impl Pass {
+    fn new(
+        (model, recordings): (&dyn Dynamics, &[Trajectory]),
+        pipeline: &Pipeline,
+        (settings, needs): (&Settings, &Needs),
+        motion: &Motion,
+        joints: &[usize],
+    ) -> anyhow::Result<Pass> {
+        let (mut data, all, _) = stack(model, recordings, pipeline, settings, Some(needs))?;
+        let mut list: Vec<Candidate> = motion
+            .selected
+            .iter()
+            .filter_map(|&c| counterpart(&all, &motion.candidates[c]))
+            .collect();
+        let mut tried = Vec::new();
+        for &j in joints {
+            let stribeck = all
+                .iter()
+                .find(|c| c.kind == Kind::StribeckFriction && c.joint == Some(j));
+            if let Some(c) = stribeck {
+                tried.push((j, list.len()));
+                list.push(c.clone());
+            }
+        }
+        moving_rows_only(&mut data, &mut list);
+        let m = Moments::new(&data, &list);
+        let initial = cv_mse(&m, data.dof, &list, &[], Scoring::Fitted);
+        Ok(Pass {
+            list,
+            tried,
+            m,
+            dof: data.dof,
+            initial,
+        })
+    }
+
+    /// The motion stage's effects.
+    fn base(&self) -> Vec<usize> {
+        (0..self.list.len() - self.tried.len()).collect()
+    }
+
+    /// Joint `j`'s Stribeck candidate in `list`.
+    fn stribeck(&self, j: usize) -> Option<usize> {
+        self.tried.iter().find(|t| t.0 == j).map(|t| t.1)
+    }
+
+    fn mse(&self, named: &[usize]) -> Vec<f64> {
+        cv_mse(&self.m, self.dof, &self.list, named, Scoring::Fitted)
+    }
+}
+
+/// Stribeck friction on each of `joints`, judged beside the effects the
+/// motion stage named, in joint order, on the rows where the joint moves
+/// (at rest friction is static: no law of the speed predicts it, and the
+/// fitted dry-friction columns are zero there). Two passes: at the motion
+/// band and rate, with the dry-friction columns from the velocity at the
+/// reversal band, the candidate must cut the joint's held-out MSE by
+/// `min_gain` (there the noise of differentiated velocity times the
+/// joint's inertia is filtered out: on a heavy shoulder it is 800 times
+/// the breakaway's share at the reversal band); at the reversal band and a
+/// ten times higher rate, where the breakaway is resolved, it must be
+/// significant and physical, and its values are reported from there.
 pub(super) fn stribeck(
-    model: &dyn Dynamics,
-    recordings: &[Trajectory],
+    (model, recordings): (&dyn Dynamics, &[Trajectory]),
     motion_pipeline: &Pipeline,
     settings: Settings,
     motion: Motion,
     joints: &[usize],
 ) -> anyhow::Result<Found> {
     let mut found = Found::default();
-    let Some(band) = pipeline(motion_pipeline).filter(|_| !joints.is_empty()) else {
+    let Some(band_pipeline) = pipeline(motion_pipeline).filter(|_| !joints.is_empty()) else {
         return Ok(found);
     };
-    let needs = Needs::of(model.dof(), &motion);
-    let (mut data, all, _) = stack(model, recordings, &band, &settings, Some(&needs))?;
-    let mut list: Vec<Candidate> = motion
-        .selected
-        .iter()
-        .filter_map(|&c| counterpart(&all, &motion.candidates[c]))
-        .collect();
-    let mut named: Vec<usize> = (0..list.len()).collect();
-    let mut tried = Vec::new();
-    for &j in joints {
-        if let Some(c) = all
-            .iter()
-            .find(|c| c.kind == Kind::StribeckFriction && c.joint == Some(j))
-        {
-            tried.push((j, list.len()));
-            list.push(c.clone());
-        }
-    }
-    moving_rows_only(&mut data, &mut list);
-    let m = Moments::new(&data, &list);
-    let dof = data.dof;
-    let initial = cv_mse(&m, dof, &list, &[], Scoring::Fitted);
-    let mut current = cv_mse(&m, dof, &list, &named, Scoring::Fitted);
+    let needs = Needs::of(model.dof(), motion.candidates, motion.selected, &band_pipeline);
+    let data = (model, recordings);
+    let gains = Pass::new(data, motion_pipeline, (&settings, &needs), &motion, joints)?;
+    let band = Pass::new(data, &band_pipeline, (&settings, &needs), &motion, joints)?;
+    let (mut named_gains, mut named) = (gains.base(), band.base());
+    let mut current = gains.mse(&named_gains);
+    let mut band_current = band.mse(&named);
     let mut removed = Vec::new();
-    for (j, c) in tried {
-        let mut trial = named.clone();
-        trial.push(c);
-        let mse = cv_mse(&m, dof, &list, &trial, Scoring::Fitted);
-        let gain = relative_gain(&current[j..=j], &mse[j..=j], &initial[j..=j]);
+    for &j in joints {
+        let (Some(g), Some(c)) = (gains.stribeck(j), band.stribeck(j)) else {
+            continue;
+        };
+        let trial_gains = [named_gains.as_slice(), &[g]].concat();
+        let mse = gains.mse(&trial_gains);
+        let gain = relative_gain(&current[j..=j], &mse[j..=j], &gains.initial[j..=j]);
         let gain = Gain { joint: j, ..gain };
-        if std::env::var("SDNN_DEBUG").is_ok() {
-            let full = fit(&m, &list, &trial, |_| true);
-            eprintln!(
-                "reversals j{j}: cur {:?} trial {:?} initial {:?} gain {:.3} theta {:?} v {:?}",
-                current, mse, initial, gain.share, full.map(|f| f.theta.as_slice().to_vec()), list[c].settings
-            );
-        }
         if gain.share < settings.min_gain {
             continue;
         }
-        let Some(full) = fit(&m, &list, &trial, |_| true) else {
+        let trial = [named.as_slice(), &[c]].concat();
+        let Some(full) = fit(&band.m, &band.list, &trial, |_| true) else {
             continue;
         };
-        let candidate = &list[c];
-        let Some(values) = significant(&m, &list, &trial, &full, settings.min_t) else {
+        let candidate = &band.list[c];
+        let Some(values) = significant(&band.m, &band.list, &trial, &full, settings.min_t) else {
             found.notes.push(format!(
-                "{}: {} at the reversal band, but its excess is not significant (|t| <= {:.1}); \
-                 not named",
+                "{}: {} with the reversals resolved, but at the reversal band its excess is not \
+                 significant (|t| <= {:.1}); not named",
                 label(candidate),
                 gain.would_cut(),
                 searched_threshold(settings.min_t, candidate.searched)
@@ -191,12 +173,13 @@ pub(super) fn stribeck(
             found.notes.push(note);
             continue;
         }
-        removed.push((c, current[j] - mse[j], initial[j]));
-        named = trial;
-        current = mse;
+        let band_mse = band.mse(&trial);
+        removed.push((c, band_current[j] - band_mse[j], band.initial[j]));
+        (named_gains, named) = (trial_gains, trial);
+        (current, band_current) = (mse, band_mse);
     }
     if !removed.is_empty() {
-        report(&m, &list, &named, &removed, &mut found);
+        report(&band.m, &band.list, &named, &removed, &mut found);
     }
     Ok(found)
 }

@@ -51,7 +51,7 @@ pub(super) fn at_reversals(
     motion: Motion,
 ) -> anyhow::Result<Found> {
     let tried = joints(model, motion.candidates, motion.selected, settings);
-    reversals::stribeck(model, recordings, pipeline, settings, motion, &tried)
+    reversals::stribeck((model, recordings), pipeline, settings, motion, &tried)
 }
 
 /// Adds the Stribeck friction found to the named effects and replaces the
