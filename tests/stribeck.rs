@@ -57,10 +57,25 @@ fn a_breakaway_excess_is_named_by_default() {
         );
         // The grid's step is 1.4, so the velocity is within 18% of a
         // point of it; the excess is fitted with that velocity.
-        near(value(&d, Kind::StribeckFriction, "velocity"), 0.08, 0.2, "v_s");
-        near(value(&d, Kind::StribeckFriction, "excess"), 0.23, 0.25, "excess");
+        near(
+            value(&d, Kind::StribeckFriction, "velocity"),
+            0.08,
+            0.2,
+            "v_s",
+        );
+        near(
+            value(&d, Kind::StribeckFriction, "excess"),
+            0.23,
+            0.25,
+            "excess",
+        );
         // The level beside it is the sliding one, refitted at the band.
-        near(value(&d, Kind::CoulombFriction, "level"), 0.16, 0.05, "level");
+        near(
+            value(&d, Kind::CoulombFriction, "level"),
+            0.16,
+            0.05,
+            "level",
+        );
     }
 }
 

@@ -70,7 +70,9 @@ fn dynamics(q: [f64; 2], qd: [f64; 2]) -> ([[f64; 2]; 2], [f64; 2]) {
     let h = coupling * q[1].sin();
     let fore = m[1] * c[1] * G * (q[0] + q[1]).cos();
     let bias = [
-        -h * (2.0 * qd[0] * qd[1] + qd[1] * qd[1]) + (m[0] * c[0] + m[1] * UPPER) * G * q[0].cos() + fore,
+        -h * (2.0 * qd[0] * qd[1] + qd[1] * qd[1])
+            + (m[0] * c[0] + m[1] * UPPER) * G * q[0].cos()
+            + fore,
         h * qd[0] * qd[0] + fore,
     ];
     ([[m11, m12], [m12, m22]], bias)
@@ -169,8 +171,7 @@ fn record(friction: Friction, seed: u64, dwell: bool) -> Trajectory {
         let (m, bias) = dynamics(q, qd);
         let a: [f64; 2] =
             std::array::from_fn(|j| r[j][2] + kp * (r[j][0] - q[j]) + kd * (r[j][1] - qd[j]));
-        let tau: [f64; 2] =
-            std::array::from_fn(|j| m[j][0] * a[0] + m[j][1] * a[1] + bias[j]);
+        let tau: [f64; 2] = std::array::from_fn(|j| m[j][0] * a[0] + m[j][1] * a[1] + bias[j]);
         for j in 0..2 {
             columns[0].push(q[j] + 1e-5 * normal(&mut rng));
             columns[1].push(qd[j] + 0.02 * normal(&mut rng));
@@ -236,7 +237,10 @@ fn a_breakaway_on_the_shoulder_is_named() {
         .find(|e| e.kind == Kind::StribeckFriction && e.joint == Some(1))
         .unwrap_or_else(|| panic!("{:?}\n{:#?}", named(&d), d.notes));
     let value = |name: &str| stribeck.parameters[name].as_f64().unwrap();
-    assert!((value("velocity") / 0.08 - 1.0).abs() <= 0.2, "{stribeck:?}");
+    assert!(
+        (value("velocity") / 0.08 - 1.0).abs() <= 0.2,
+        "{stribeck:?}"
+    );
     assert!((value("excess") / 0.23 - 1.0).abs() <= 0.25, "{stribeck:?}");
     let kinds: Vec<Kind> = d.effects.iter().map(|e| e.kind).collect();
     assert!(

@@ -60,8 +60,8 @@ impl Band {
 pub(super) fn pipeline(motion: &Pipeline) -> Option<Pipeline> {
     let mut choice = motion.choice.clone()?;
     choice.cutoff_hz = cutoff(choice.cutoff_hz, choice.sample_rate_hz);
-    choice.decimated_rate_hz = (crate::preprocess::auto::RATE_PER_CUTOFF * choice.cutoff_hz)
-        .min(choice.sample_rate_hz);
+    choice.decimated_rate_hz =
+        (crate::preprocess::auto::RATE_PER_CUTOFF * choice.cutoff_hz).min(choice.sample_rate_hz);
     let settings = Preprocess::identification(&choice, choice.sample_rate_hz);
     Some(Pipeline {
         choice: Some(choice),

@@ -87,8 +87,10 @@ pub(super) struct Columns {
     pub(super) coulomb_levels: Vec<f64>,
     /// The longest sample period of the raw recordings, s.
     pub(super) sample_period: f64,
-    /// Per Stribeck velocity of `search::STRIBECK_VELOCITIES` the fitted
-    /// (moving sign) and applied (the model's sign) Stribeck columns.
+    /// Per Stribeck velocity of `search::stribeck_velocities` the fitted
+    /// Stribeck column (moving sign) twice, as fitted and as scored (the
+    /// reversal stage scores what the physics explains); empty at the
+    /// motion stage.
     pub(super) stribeck: Vec<(DVector<f64>, DVector<f64>)>,
     /// Per joint the speed below which it counts as at rest (the largest
     /// over the recordings), rad/s.

@@ -2,8 +2,8 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
-use super::candidate::{Candidate, Columns, Shape, candidates};
 use super::band::{self, Band, Needs, Stage};
+use super::candidate::{Candidate, Columns, Shape, candidates};
 use super::search::stribeck_velocities;
 use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
@@ -76,8 +76,8 @@ struct Rows {
     /// d/dt of the measured torque (a delay's column: a torque logged late
     /// is, to first order, the torque minus the delay times its rate).
     measured_rate: Vec<f64>,
-    /// Stribeck columns per velocity of `search::stribeck_velocities`: the
-    /// fitted ones (moving sign), then the applied ones (the model's sign).
+    /// Stribeck columns per velocity of `search::stribeck_velocities`
+    /// (moving sign; the reversal stage only).
     stribeck: Vec<Vec<f64>>,
 }
 
@@ -222,7 +222,9 @@ pub(super) fn stack(
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
                 let band = match stage {
-                    Stage::Motion => Band::of(&traj, &rest_velocities(raw, &traj, &settings, &moving)),
+                    Stage::Motion => {
+                        Band::of(&traj, &rest_velocities(raw, &traj, &settings, &moving))
+                    }
                     Stage::Reversals => {
                         let band_hz = reversal.map_or(0.0, |r| r.band_hz);
                         band::velocity(raw, &settings, &moving, band_hz)?
@@ -231,7 +233,14 @@ pub(super) fn stack(
                 for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
                     *largest = largest.max(*r);
                 }
-                let mut rows = rows(model, models(&tilted), &traj, &band, (stage, bodies), &levers)?;
+                let mut rows = rows(
+                    model,
+                    models(&tilted),
+                    &traj,
+                    &band,
+                    (stage, bodies),
+                    &levers,
+                )?;
                 for column in rows.filtered_mut() {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
@@ -245,7 +254,14 @@ pub(super) fn stack(
                 }
                 let band = Band::of(&traj, &moving);
                 (
-                    rows(model, models(&tilted), &traj, &band, (stage, bodies), &levers)?,
+                    rows(
+                        model,
+                        models(&tilted),
+                        &traj,
+                        &band,
+                        (stage, bodies),
+                        &levers,
+                    )?,
                     (0..traj.len()).collect(),
                     dt,
                 )

@@ -79,9 +79,9 @@
 //! couplings with the first joint), so the torques barely depend on it.
 
 mod admit;
-mod band;
 mod alternatives;
 pub mod apply;
+mod band;
 mod candidate;
 pub mod data;
 mod diagnosis;
@@ -101,8 +101,8 @@ mod search;
 mod select;
 mod settings;
 mod shape;
-mod stribeck;
 mod stacked;
+mod stribeck;
 mod text;
 mod uncertainty;
 mod unconstrained;
@@ -292,8 +292,7 @@ pub fn diagnose(
     if settings.sanity_gate {
         sanity::refuse(model, &misplaced)?;
     }
-    let (data, mut candidates, layout) =
-        stack(model, recordings, pipeline, &settings, None)?;
+    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings, None)?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(

@@ -1,22 +1,23 @@
-//! The reversal stage: Stribeck friction judged at a band and rate that
-//! resolve velocity reversals.
+//! The reversal stage: Stribeck friction, judged where velocity reversals
+//! are resolved ([`super::band`]).
 //!
 //! The motion stage low-passes at three times the motion's bandwidth (about
 //! 3 Hz) and decimates to ten times that: enough for every kind whose
-//! torque follows the motion, but a joint's breakaway lasts as long as its
-//! speed stays below the Stribeck velocity (tens to a few hundred ms), and
-//! in the motion band that hump is smeared into the Coulomb step. Here the
-//! same recordings pass the same zero-phase Butterworth and parallel filter
-//! at [`BAND_PER_CUTOFF`] times the motion's cut-off (at most a fifth of the
-//! sample rate) and are decimated to ten times that; the effects the motion
-//! stage named are refitted there beside each candidate, and a joint's
-//! Stribeck friction is named when it passes the selection's own tests at
-//! this stage (held-out gain, significance for the searched velocity, a
-//! positive excess). The motion stage then reports it with the others:
-//! its fitted column comes from the velocity at this band, its applied
-//! column from the states' velocity, as `sdnn evaluate` computes it.
+//! torque follows the motion, but a breakaway lasts as long as the joint's
+//! speed stays below the Stribeck velocity, and the motion band's velocity
+//! smears it into the Coulomb step (the fit of Coulomb friction alone on the
+//! issue's case: 0.174 N m for a sliding level of 0.16). The effects the
+//! motion stage named are refitted beside each joint's Stribeck candidate in
+//! two passes over the same recordings, both on the rows where the joint
+//! moves: the motion pipeline with the dry-friction columns built from the
+//! velocity at the reversal band (the held-out gain), and the reversal
+//! band's own pipeline, the same zero-phase Butterworth and parallel filter
+//! at ten times the cut-off, decimated to ten times that (significance,
+//! sign and the reported values). The refitted Coulomb and viscous values
+//! of the joint replace the motion stage's in the report.
 
 use super::admit::{physical, searched_threshold, significant};
+use super::band::{Needs, pipeline};
 use super::candidate::{Candidate, label, width};
 use super::data::stack;
 use super::diagnosis::Effect;
@@ -30,7 +31,6 @@ use super::settings::Settings;
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 use crate::dynamics::Dynamics;
-use super::band::{Needs, pipeline};
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
 
@@ -135,7 +135,12 @@ pub(super) fn stribeck(
     let Some(band_pipeline) = pipeline(motion_pipeline).filter(|_| !joints.is_empty()) else {
         return Ok(found);
     };
-    let needs = Needs::of(model.dof(), motion.candidates, motion.selected, &band_pipeline);
+    let needs = Needs::of(
+        model.dof(),
+        motion.candidates,
+        motion.selected,
+        &band_pipeline,
+    );
     let data = (model, recordings);
     let gains = Pass::new(data, motion_pipeline, (&settings, &needs), &motion, joints)?;
     let band = Pass::new(data, &band_pipeline, (&settings, &needs), &motion, joints)?;
@@ -225,7 +230,10 @@ fn report(
             .map(|k| (fit.theta[k], 1.96 * se[k]))
             .collect();
         offset += w;
-        let Some(j) = candidate.joint.filter(|_| joints.contains(&candidate.joint)) else {
+        let Some(j) = candidate
+            .joint
+            .filter(|_| joints.contains(&candidate.joint))
+        else {
             continue;
         };
         match removed.iter().find(|r| r.0 == c) {
