@@ -34,13 +34,16 @@ use crate::dynamics::Dynamics;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
 
+/// A named effect refitted beside Stribeck friction: its kind, 0-based
+/// joint, and each parameter's value with its 95% half-width.
+pub(super) type Refit = (Kind, usize, Vec<(f64, f64)>);
+
 /// What the reversal stage found: the Stribeck friction it names, the
 /// refitted values of the friction already named on those joints, notes.
 #[derive(Default)]
 pub(super) struct Found {
     pub(super) effects: Vec<Effect>,
-    /// (kind, 0-based joint, each parameter's value and 95% half-width).
-    pub(super) refits: Vec<(Kind, usize, Vec<(f64, f64)>)>,
+    pub(super) refits: Vec<Refit>,
     pub(super) notes: Vec<String>,
 }
 
