@@ -181,6 +181,15 @@ pub(super) fn stribeck(
             found.notes.push(note);
             continue;
         }
+        if let Some(other) = unphysical_beside(&band.list, &trial, &full.theta, j, settings) {
+            found.notes.push(format!(
+                "{}: {} with the reversals resolved, but beside it {other} is no longer \
+                 physical (a breakaway traded against the joint's friction, not found); not named",
+                label(candidate),
+                gain.would_cut()
+            ));
+            continue;
+        }
         let band_mse = band.mse(&trial);
         removed.push((c, band_current[j] - band_mse[j], band.initial[j]));
         (named_gains, named) = (trial_gains, trial);
@@ -190,6 +199,33 @@ pub(super) fn stribeck(
         report(&band.m, &band.list, &named, &removed, &mut found);
     }
     Ok(found)
+}
+
+/// The first friction effect named on joint `j` (other than the last of
+/// `trial`, the Stribeck candidate) whose value in the fit `theta` of
+/// `trial` is not physical (a negative Coulomb level): a Stribeck shape
+/// fading slowly trades against the sliding level and viscous friction.
+fn unphysical_beside(
+    list: &[Candidate],
+    trial: &[usize],
+    theta: &nalgebra::DVector<f64>,
+    j: usize,
+    settings: Settings,
+) -> Option<String> {
+    let mut offset = 0;
+    for &c in &trial[..trial.len() - 1] {
+        let candidate = &list[c];
+        let w = width(candidate);
+        let values: Vec<f64> = theta.rows(offset, w).iter().copied().collect();
+        offset += w;
+        if candidate.joint == Some(j)
+            && REFITTED.contains(&candidate.kind)
+            && physical(candidate, &values, Gain::NONE, settings.reach).is_err()
+        {
+            return Some(label(candidate));
+        }
+    }
+    None
 }
 
 /// Zeroes the residual and every column on the rows where their joint is
