@@ -4,7 +4,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::band::{self, Band, Needs, Stage};
 use super::candidate::{Candidate, Columns, Shape, candidates};
-use super::search::stribeck_velocities;
+use super::search::{RESOLVED_REST_MULTIPLE, stribeck_velocities};
 use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
 use crate::dynamics::{Dynamics, model_torques};
@@ -241,7 +241,9 @@ pub(super) fn stack(
                     (stage, bodies),
                     &levers,
                 )?;
-                for column in rows.filtered_mut() {
+                // A column of zeros (a tilt or Stribeck velocity not built
+                // at this stage) stays zero through any linear filter.
+                for column in rows.filtered_mut().filter(|c| c.iter().any(|x| *x != 0.0)) {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
                 (rows, Pipeline::kept_samples(&settings, traj.len(), dt), dt)
@@ -423,7 +425,14 @@ fn rows(
             }
             rows.measured_rate.push(measured_rate[(s, i)]);
             for (fitted, v) in rows.stribeck.iter_mut().zip(&velocities) {
-                fitted.push(sign * (-(resolved / (v * levers[i])).powi(2)).exp());
+                // Velocities below the least at-rest speed's resolved
+                // multiple are never searched: a zero column, not filtered.
+                let shape = if *v < RESOLVED_REST_MULTIPLE * MOVING {
+                    0.0
+                } else {
+                    sign * (-(resolved / (v * levers[i])).powi(2)).exp()
+                };
+                fitted.push(shape);
             }
         }
     }
