@@ -26,6 +26,7 @@ mod refit;
 mod sanity_gate;
 mod springs;
 mod stribeck;
+mod stribeck_planar;
 mod study;
 mod urdf_chains;
 mod util;

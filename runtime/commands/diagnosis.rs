@@ -25,9 +25,9 @@ pub struct DiagnoseArgs {
     /// 2-30 s each].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub segments: Option<u32>,
-    /// Let Stribeck friction compete too (off by default: from recordings
-    /// its signature, confined to velocity reversals, is confounded with the
-    /// stick-slip of plain dry friction; see docs/diagnosis.md).
+    /// Try Stribeck friction on every joint: by default it is tried, where
+    /// velocity reversals are resolved, on the joints with Coulomb friction
+    /// named or modelled (see docs/diagnosis.md).
     #[arg(long)]
     pub stribeck: bool,
     /// Name effects even when the recordings fail the sanity gate (a torque

@@ -87,14 +87,19 @@ pub(super) struct Columns {
     pub(super) coulomb_levels: Vec<f64>,
     /// The longest sample period of the raw recordings, s.
     pub(super) sample_period: f64,
-    /// Per Stribeck velocity of `search::STRIBECK_VELOCITIES` the fitted
-    /// (moving sign) and applied (the model's sign) Stribeck columns.
+    /// Per Stribeck velocity of `search::stribeck_velocities` the fitted
+    /// Stribeck column (moving sign) twice, as fitted and as scored (the
+    /// reversal stage scores what the physics explains); empty at the
+    /// motion stage.
     pub(super) stribeck: Vec<(DVector<f64>, DVector<f64>)>,
     /// Per joint the speed below which it counts as at rest (the largest
     /// over the recordings), rad/s.
     pub(super) rest: Vec<f64>,
     /// Per joint the cycles of the model's own ripple, if it has one.
     pub(super) modelled_ripple: Vec<Option<f64>>,
+    /// Per joint the ripple's cycles when they are given (the reversal
+    /// stage takes the motion stage's choice): no harmonic search then.
+    pub(super) ripple_given: Option<Vec<Option<f64>>>,
 }
 
 /// Every candidate effect: per joint viscous, Coulomb and direction-dependent
@@ -123,6 +128,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         stribeck,
         rest,
         modelled_ripple,
+        ripple_given,
     } = columns;
     let model_torque = &data.measured - &data.residual;
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
@@ -183,13 +189,16 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
                 ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])
             });
         }
-        let ripple = match modelled_ripple.get(j).copied().flatten() {
+        let modelled = modelled_ripple.get(j).copied().flatten();
+        let given = ripple_given.as_ref().map(|g| g.get(j).copied().flatten());
+        let ripple = match given.unwrap_or(modelled).or(modelled) {
             // A ripple the model has is refit at its harmonic (a correction
             // of its amplitudes; a description holds one harmonic per
             // joint). No search: the nuisance's model-torque column holds
             // the modelled ripple, so the search could not see that
             // harmonic, and an amplitude 4 times the model's went unnamed.
             Some(cycles) => Some((cycles, 1)),
+            None if given.is_some() => None,
             None => search::ripple_cycles(data, j, &angle, &nuisance),
         };
         if let Some((cycles, searched)) = ripple {
@@ -231,6 +240,9 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             )
         });
     }
+    // The reversal stage builds the links' columns only when a link effect
+    // was named.
+    let links = if inertial.is_empty() { &[] } else { links };
     for (k, link) in links.iter().enumerate().rev() {
         let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
         if k + 1 == n {

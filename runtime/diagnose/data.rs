@@ -2,8 +2,9 @@
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
+use super::band::{self, Band, Needs, Stage};
 use super::candidate::{Candidate, Columns, Shape, candidates};
-use super::search::stribeck_velocities;
+use super::search::{RESOLVED_REST_MULTIPLE, stribeck_velocities};
 use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
 use crate::dynamics::{Dynamics, model_torques};
@@ -75,8 +76,8 @@ struct Rows {
     /// d/dt of the measured torque (a delay's column: a torque logged late
     /// is, to first order, the torque minus the delay times its rate).
     measured_rate: Vec<f64>,
-    /// Stribeck columns per velocity of `search::stribeck_velocities`: the
-    /// fitted ones (moving sign), then the applied ones (the model's sign).
+    /// Stribeck columns per velocity of `search::stribeck_velocities`
+    /// (moving sign; the reversal stage only).
     stribeck: Vec<Vec<f64>>,
 }
 
@@ -133,12 +134,19 @@ impl Rows {
             .chain(&self.stribeck)
     }
 
-    /// Empty rows with every column (`stribeck` Stribeck velocities).
-    fn with_columns(dof: usize, capacity: usize, stribeck: usize) -> Rows {
+    /// Empty rows with every column of `stage`: Stribeck columns for each
+    /// velocity of the grid at the reversal stage, the generic features of
+    /// the unexplained-structure check at the motion stage; the links'
+    /// inertial columns with `bodies`.
+    fn with_columns(dof: usize, capacity: usize, (stage, bodies): (Stage, bool)) -> Rows {
+        let (stribeck, generic) = match stage {
+            Stage::Reversals => (stribeck_velocities().len(), 0),
+            Stage::Motion => (0, GENERIC_FEATURES.len()),
+        };
         Rows {
-            inertial: vec![Vec::with_capacity(capacity); 10 * dof],
-            generic: vec![Vec::with_capacity(capacity); GENERIC_FEATURES.len()],
-            stribeck: vec![Vec::with_capacity(capacity); 2 * stribeck],
+            inertial: vec![Vec::with_capacity(capacity); if bodies { 10 * dof } else { 0 }],
+            generic: vec![Vec::with_capacity(capacity); generic],
+            stribeck: vec![Vec::with_capacity(capacity); stribeck],
             ..Rows::default()
         }
     }
@@ -173,19 +181,24 @@ impl Rows {
 /// fitted column with the torque's filter (parallel filtering), trims filter
 /// transients, decimates and cuts the recordings into cross-validation
 /// segments (`segments` per recording, or chosen by [`segment_counts`]).
+/// Stribeck friction is a candidate at the reversal stage only (a less
+/// decimated pipeline, see [`super::reversals`]; `reversal` says what it
+/// needs of the motion stage's choices: the ripple's harmonic is given, and
+/// a link's or the tilt's columns are built only for a named one).
 pub(super) fn stack(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
     pipeline: &Pipeline,
     settings: &Settings,
+    reversal: Option<&Needs>,
 ) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
     let n = model.dof();
-    let velocities = if settings.stribeck {
-        stribeck_velocities()
-    } else {
-        Vec::new()
+    let stage = match reversal {
+        Some(_) => Stage::Reversals,
+        None => Stage::Motion,
     };
-    let tilted = tilted_models(model);
+    let bodies = reversal.is_none_or(|r| r.bodies);
+    let tilted = tilted_models(model).filter(|_| reversal.is_none_or(|r| r.tilt));
     let levers = crate::dynamics::joint_levers(model);
     let moving: Vec<f64> = levers.iter().map(|lever| MOVING * lever).collect();
     let mut kept = Vec::new();
@@ -208,12 +221,29 @@ pub(super) fn stack(
                 // the torque filter, so every column is compared exactly.
                 let traj = settings.states_at_full_rate(raw)?;
                 let dt = step(&traj);
-                let rest = rest_velocities(raw, &traj, &settings, &moving);
-                for (largest, r) in at_rest.iter_mut().zip(&rest) {
+                let band = match stage {
+                    Stage::Motion => {
+                        Band::of(&traj, &rest_velocities(raw, &traj, &settings, &moving))
+                    }
+                    Stage::Reversals => {
+                        let band_hz = reversal.map_or(0.0, |r| r.band_hz);
+                        band::velocity(raw, &settings, &moving, band_hz)?
+                    }
+                };
+                for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
                     *largest = largest.max(*r);
                 }
-                let mut rows = rows(model, models(&tilted), &traj, &rest, &velocities, &levers)?;
-                for column in rows.filtered_mut() {
+                let mut rows = rows(
+                    model,
+                    models(&tilted),
+                    &traj,
+                    &band,
+                    (stage, bodies),
+                    &levers,
+                )?;
+                // A column of zeros (a tilt or Stribeck velocity not built
+                // at this stage) stays zero through any linear filter.
+                for column in rows.filtered_mut().filter(|c| c.iter().any(|x| *x != 0.0)) {
                     smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
                 }
                 (rows, Pipeline::kept_samples(&settings, traj.len(), dt), dt)
@@ -221,12 +251,19 @@ pub(super) fn stack(
             _ => {
                 let traj = settings.apply(raw)?;
                 let dt = step(&traj);
-                let rest = moving.clone();
                 for (largest, r) in at_rest.iter_mut().zip(&moving) {
                     *largest = largest.max(*r);
                 }
+                let band = Band::of(&traj, &moving);
                 (
-                    rows(model, models(&tilted), &traj, &rest, &velocities, &levers)?,
+                    rows(
+                        model,
+                        models(&tilted),
+                        &traj,
+                        &band,
+                        (stage, bodies),
+                        &levers,
+                    )?,
                     (0..traj.len()).collect(),
                     dt,
                 )
@@ -249,7 +286,7 @@ pub(super) fn stack(
         Some(k) => vec![k; kept.len()],
         None => segment_counts(&durations),
     };
-    let mut all = Rows::with_columns(n, 0, velocities.len());
+    let mut all = Rows::with_columns(n, 0, (stage, bodies));
     let mut group = Vec::new();
     for ((rows, &count), &seconds) in kept.iter().zip(&counts).zip(&durations) {
         let samples = rows.residual.len() / n;
@@ -290,6 +327,7 @@ pub(super) fn stack(
         group,
         dof: n,
         levers,
+        rest: at_rest.clone(),
     };
     let columns = Columns {
         own: all.own.map(DVector::from_vec),
@@ -302,6 +340,7 @@ pub(super) fn stack(
         stribeck: stribeck_pairs(all.stribeck),
         rest: at_rest,
         modelled_ripple: super::modelled::ripple_cycles(&super::modelled::joint_effects(model)),
+        ripple_given: reversal.map(|r| r.ripple.clone()),
     };
     let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout))
@@ -327,14 +366,15 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
 }
 
 /// The model's residual and candidate columns at every sample of `traj`.
-/// `rest[j]`: joint j's speed below which it counts as at rest (see
-/// [`rest_velocities`]); Stribeck columns for each of `velocities`.
+/// The dry-friction columns (Coulomb's moving sign, Stribeck's for each
+/// velocity of the grid at the reversal stage) follow `band`'s velocity and
+/// at-rest speeds (see [`rest_velocities`]).
 fn rows(
     model: &dyn Dynamics,
     tilted: Option<&[Model; 3]>,
     traj: &Trajectory,
-    rest: &[f64],
-    velocities: &[f64],
+    band: &Band,
+    (stage, bodies): (Stage, bool),
     levers: &[f64],
 ) -> anyhow::Result<Rows> {
     let n = model.dof();
@@ -342,24 +382,34 @@ fn rows(
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
-    let mut rows = Rows::with_columns(n, traj.len() * n, velocities.len());
+    let mut rows = Rows::with_columns(n, traj.len() * n, (stage, bodies));
+    let velocities = match stage {
+        Stage::Reversals => stribeck_velocities(),
+        Stage::Motion => Vec::new(),
+    };
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
     for s in 0..traj.len() {
         let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
         let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));
-        let y = model.regressor(&q, &qd, &qdd)?;
+        let y = match bodies {
+            true => model.regressor(&q, &qd, &qdd)?,
+            false => DMatrix::zeros(0, 0),
+        };
         let load = model.gravity(&q)?;
         let tilt = tilted.map(|m| m.each_ref().map(|m| oracle::gravity(m, &q)));
         for i in 0..n {
             let tau = traj.tau()[(s, i)];
             rows.residual.push(tau - predicted[(s, i)]);
             rows.measured.push(tau);
-            rows.qd.push(qd[i]);
+            // The dry-friction columns follow the velocity that resolves
+            // reversals (the states' own at the motion stage).
+            let resolved = band.qd[(s, i)];
+            rows.qd.push(resolved);
             rows.qdd.push(qdd[i]);
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
-            let sign = moving_sign(qd[i], rest[i]);
+            let sign = moving_sign(resolved, band.rest[i]);
             for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i]].into_iter().enumerate() {
                 rows.own[k].push(v);
             }
@@ -374,11 +424,15 @@ fn rows(
                 column.push(tilt.as_ref().map_or(0.0, |t| t[k][i]));
             }
             rows.measured_rate.push(measured_rate[(s, i)]);
-            let (fitted, applied) = rows.stribeck.split_at_mut(velocities.len());
-            for ((fitted, applied), v) in fitted.iter_mut().zip(applied).zip(velocities) {
-                let fading = (-(qd[i] / (v * levers[i])).powi(2)).exp();
-                fitted.push(sign * fading);
-                applied.push(coulomb_sign(qd[i]) * fading);
+            for (fitted, v) in rows.stribeck.iter_mut().zip(&velocities) {
+                // Velocities below the least at-rest speed's resolved
+                // multiple are never searched: a zero column, not filtered.
+                let shape = if *v < RESOLVED_REST_MULTIPLE * MOVING {
+                    0.0
+                } else {
+                    sign * (-(resolved / (v * levers[i])).powi(2)).exp()
+                };
+                fitted.push(shape);
             }
         }
     }
@@ -386,12 +440,16 @@ fn rows(
 }
 
 /// The stacked Stribeck columns as (fitted, applied) pairs per velocity.
-fn stribeck_pairs(mut columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
-    let applied = columns.split_off(columns.len() / 2);
+/// The reversal stage scores the fitted columns only (it names what the
+/// physics explains; the report says how the generated model applies it),
+/// so both are the fitted one.
+fn stribeck_pairs(columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
     columns
         .into_iter()
-        .zip(applied)
-        .map(|(f, a)| (DVector::from_vec(f), DVector::from_vec(a)))
+        .map(|f| {
+            let f = DVector::from_vec(f);
+            (f.clone(), f)
+        })
         .collect()
 }
 

@@ -83,6 +83,7 @@
 mod admit;
 mod alternatives;
 pub mod apply;
+mod band;
 mod candidate;
 pub mod data;
 mod diagnosis;
@@ -96,12 +97,14 @@ mod modelled;
 mod moments;
 pub mod plots;
 mod report;
+mod reversals;
 mod sanity;
 mod search;
 mod select;
 mod settings;
 mod shape;
 mod stacked;
+mod stribeck;
 mod supported;
 mod text;
 mod uncertainty;
@@ -293,7 +296,7 @@ pub fn diagnose(
     if settings.sanity_gate {
         sanity::refuse(model, &misplaced)?;
     }
-    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings)?;
+    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings, None)?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(
@@ -329,6 +332,11 @@ pub fn diagnose(
     }
     let (mut selected, mut notes) = (selection.selected, selection.notes);
     drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
+    let motion = reversals::Motion {
+        candidates: &candidates,
+        selected: &selected,
+    };
+    let stribeck = stribeck::at_reversals(model, recordings, pipeline, settings, motion)?;
     let alternatives: Vec<_> = selection
         .alternatives
         .into_iter()
@@ -392,6 +400,7 @@ pub fn diagnose(
             label(&candidates[c])
         ));
     }
+    stribeck::merge(stribeck, &mut effects, &mut notes);
     modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);

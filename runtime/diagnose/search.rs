@@ -21,7 +21,7 @@ pub fn stribeck_velocities() -> Vec<f64> {
 /// multiple of the joint's at-rest speed (three noise deviations): below,
 /// its column is the samples just past the at-rest threshold, where a
 /// joint that sticks and slips (any dry friction) leaves structure too.
-const RESOLVED_REST_MULTIPLE: f64 = 3.0;
+pub(super) const RESOLVED_REST_MULTIPLE: f64 = 3.0;
 
 /// Most ripple periods per joint revolution searched; and the least number
 /// of periods over the range the joint travelled (fewer are a smooth
@@ -194,6 +194,7 @@ pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVec
         group: (0..samples).map(|s| s * 4 / samples).collect(),
         dof: 1,
         levers: vec![1.0],
+        rest: vec![0.02],
     };
     (data, q, qd)
 }

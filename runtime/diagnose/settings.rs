@@ -20,9 +20,9 @@ pub struct Settings {
     /// Cross-validation segments per recording; `None` chooses them (see
     /// [`super::data::segment_counts`]).
     pub segments: Option<usize>,
-    /// Whether Stribeck friction competes (off by default: its signature,
-    /// confined to velocity reversals, is confounded with the stick-slip
-    /// of plain dry friction; docs/diagnosis.md).
+    /// Whether Stribeck friction is tried on every joint. By default it is
+    /// tried, at the reversal stage (docs/diagnosis.md), on the joints with
+    /// dry friction named or modelled: a breakaway exceeds a sliding level.
     pub stribeck: bool,
     /// Whether the sanity gate runs first (see [`super::sanity`]): on by
     /// default; off only for recordings a person has checked by hand.

@@ -19,6 +19,9 @@ pub(crate) struct Stacked {
     /// Per joint the lever its speeds are scaled by (1 revolute,
     /// `dynamics::PRISMATIC_LEVER` prismatic): the Stribeck grid's.
     pub(super) levers: Vec<f64>,
+    /// Per joint the speed below which it counts as at rest (the largest
+    /// over the recordings; see `data::MOVING`).
+    pub(super) rest: Vec<f64>,
 }
 
 impl Stacked {

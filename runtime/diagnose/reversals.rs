@@ -1,0 +1,316 @@
+//! The reversal stage: Stribeck friction, judged where velocity reversals
+//! are resolved ([`super::band`]).
+//!
+//! The motion stage low-passes at three times the motion's bandwidth (about
+//! 3 Hz) and decimates to ten times that: enough for every kind whose
+//! torque follows the motion, but a breakaway lasts as long as the joint's
+//! speed stays below the Stribeck velocity, and the motion band's velocity
+//! smears it into the Coulomb step (the fit of Coulomb friction alone on the
+//! issue's case: 0.174 N m for a sliding level of 0.16). The effects the
+//! motion stage named are refitted beside each joint's Stribeck candidate in
+//! two passes over the same recordings, both on the rows where the joint
+//! moves: the motion pipeline with the dry-friction columns built from the
+//! velocity at the reversal band (the held-out gain), and the reversal
+//! band's own pipeline, the same zero-phase Butterworth and parallel filter
+//! at ten times the cut-off, decimated to ten times that (significance,
+//! sign and the reported values). The refitted Coulomb and viscous values
+//! of the joint replace the motion stage's in the report.
+
+use super::admit::{physical, searched_threshold, significant};
+use super::band::{Needs, pipeline};
+use super::candidate::{Candidate, label, width};
+use super::data::stack;
+use super::diagnosis::Effect;
+use super::fit::fit;
+use super::gain::{Gain, relative_gain};
+use super::heldout::{Scoring, cv_mse};
+use super::kind::Kind;
+use super::moments::Moments;
+use super::report::effect;
+use super::settings::Settings;
+use super::stacked::Stacked;
+use super::uncertainty::fit_robust;
+use crate::dynamics::Dynamics;
+use crate::preprocess::Pipeline;
+use crate::trajectory::Trajectory;
+
+/// A named effect refitted beside Stribeck friction: its kind, 0-based
+/// joint, and each parameter's value with its 95% half-width.
+pub(super) type Refit = (Kind, usize, Vec<(f64, f64)>);
+
+/// What the reversal stage found: the Stribeck friction it names, the
+/// refitted values of the friction already named on those joints, notes.
+#[derive(Default)]
+pub(super) struct Found {
+    pub(super) effects: Vec<Effect>,
+    pub(super) refits: Vec<Refit>,
+    pub(super) notes: Vec<String>,
+}
+
+/// What the motion stage has decided: its candidates and the named ones.
+pub(super) struct Motion<'a> {
+    pub(super) candidates: &'a [Candidate],
+    pub(super) selected: &'a [usize],
+}
+
+/// One pass of the reversal stage: the motion stage's named effects and
+/// the Stribeck candidates of the joints tried, on the rows where their
+/// joint moves.
+struct Pass {
+    list: Vec<Candidate>,
+    /// Per joint tried, its Stribeck candidate in `list`.
+    tried: Vec<(usize, usize)>,
+    m: Moments,
+    dof: usize,
+    initial: Vec<f64>,
+}
+
+impl Pass {
+    fn new(
+        (model, recordings): (&dyn Dynamics, &[Trajectory]),
+        pipeline: &Pipeline,
+        (settings, needs): (&Settings, &Needs),
+        motion: &Motion,
+        joints: &[usize],
+    ) -> anyhow::Result<Pass> {
+        let (mut data, all, _) = stack(model, recordings, pipeline, settings, Some(needs))?;
+        let mut list: Vec<Candidate> = motion
+            .selected
+            .iter()
+            .filter_map(|&c| counterpart(&all, &motion.candidates[c]))
+            .collect();
+        let mut tried = Vec::new();
+        for &j in joints {
+            let stribeck = all
+                .iter()
+                .find(|c| c.kind == Kind::StribeckFriction && c.joint == Some(j));
+            if let Some(c) = stribeck {
+                tried.push((j, list.len()));
+                list.push(c.clone());
+            }
+        }
+        moving_rows_only(&mut data, &mut list);
+        let m = Moments::new(&data, &list);
+        let initial = cv_mse(&m, data.dof, &list, &[], Scoring::Fitted);
+        Ok(Pass {
+            list,
+            tried,
+            m,
+            dof: data.dof,
+            initial,
+        })
+    }
+
+    /// The motion stage's effects.
+    fn base(&self) -> Vec<usize> {
+        (0..self.list.len() - self.tried.len()).collect()
+    }
+
+    /// Joint `j`'s Stribeck candidate in `list`.
+    fn stribeck(&self, j: usize) -> Option<usize> {
+        self.tried.iter().find(|t| t.0 == j).map(|t| t.1)
+    }
+
+    fn mse(&self, named: &[usize]) -> Vec<f64> {
+        cv_mse(&self.m, self.dof, &self.list, named, Scoring::Fitted)
+    }
+}
+
+/// Stribeck friction on each of `joints`, judged beside the effects the
+/// motion stage named, in joint order, on the rows where the joint moves
+/// (at rest friction is static: no law of the speed predicts it, and the
+/// fitted dry-friction columns are zero there). Two passes: at the motion
+/// band and rate, with the dry-friction columns from the velocity at the
+/// reversal band, the candidate must cut the joint's held-out MSE by
+/// `min_gain` (there the noise of differentiated velocity times the
+/// joint's inertia is filtered out: on a heavy shoulder it is 800 times
+/// the breakaway's share at the reversal band); at the reversal band and a
+/// ten times higher rate, where the breakaway is resolved, it must be
+/// significant and physical, and its values are reported from there.
+pub(super) fn stribeck(
+    (model, recordings): (&dyn Dynamics, &[Trajectory]),
+    motion_pipeline: &Pipeline,
+    settings: Settings,
+    motion: Motion,
+    joints: &[usize],
+) -> anyhow::Result<Found> {
+    let mut found = Found::default();
+    let Some(band_pipeline) = pipeline(motion_pipeline).filter(|_| !joints.is_empty()) else {
+        return Ok(found);
+    };
+    let needs = Needs::of(
+        model.dof(),
+        motion.candidates,
+        motion.selected,
+        &band_pipeline,
+    );
+    let data = (model, recordings);
+    let gains = Pass::new(data, motion_pipeline, (&settings, &needs), &motion, joints)?;
+    let band = Pass::new(data, &band_pipeline, (&settings, &needs), &motion, joints)?;
+    let (mut named_gains, mut named) = (gains.base(), band.base());
+    let mut current = gains.mse(&named_gains);
+    let mut band_current = band.mse(&named);
+    let mut removed = Vec::new();
+    for &j in joints {
+        let (Some(g), Some(c)) = (gains.stribeck(j), band.stribeck(j)) else {
+            continue;
+        };
+        let trial_gains = [named_gains.as_slice(), &[g]].concat();
+        let mse = gains.mse(&trial_gains);
+        let gain = relative_gain(&current[j..=j], &mse[j..=j], &gains.initial[j..=j]);
+        let gain = Gain { joint: j, ..gain };
+        if gain.share < settings.min_gain {
+            continue;
+        }
+        let trial = [named.as_slice(), &[c]].concat();
+        let Some(full) = fit(&band.m, &band.list, &trial, |_| true) else {
+            continue;
+        };
+        let candidate = &band.list[c];
+        let Some(values) = significant(&band.m, &band.list, &trial, &full, settings.min_t) else {
+            found.notes.push(format!(
+                "{}: {} with the reversals resolved, but at the reversal band its excess is not \
+                 significant (|t| <= {:.1}); not named",
+                label(candidate),
+                gain.would_cut(),
+                searched_threshold(settings.min_t, candidate.searched)
+            ));
+            continue;
+        };
+        if let Err(note) = physical(candidate, &values, gain, settings.reach) {
+            found.notes.push(note);
+            continue;
+        }
+        if let Some(other) = unphysical_beside(&band.list, &trial, &full.theta, j, settings) {
+            found.notes.push(format!(
+                "{}: {} with the reversals resolved, but beside it {other} is no longer \
+                 physical (a breakaway traded against the joint's friction, not found); not named",
+                label(candidate),
+                gain.would_cut()
+            ));
+            continue;
+        }
+        let band_mse = band.mse(&trial);
+        removed.push((c, band_current[j] - band_mse[j], band.initial[j]));
+        (named_gains, named) = (trial_gains, trial);
+        (current, band_current) = (mse, band_mse);
+    }
+    if !removed.is_empty() {
+        report(&band.m, &band.list, &named, &removed, &mut found);
+    }
+    Ok(found)
+}
+
+/// The first friction effect named on joint `j` (other than the last of
+/// `trial`, the Stribeck candidate) whose value in the fit `theta` of
+/// `trial` is not physical (a negative Coulomb level): a Stribeck shape
+/// fading slowly trades against the sliding level and viscous friction.
+fn unphysical_beside(
+    list: &[Candidate],
+    trial: &[usize],
+    theta: &nalgebra::DVector<f64>,
+    j: usize,
+    settings: Settings,
+) -> Option<String> {
+    let mut offset = 0;
+    for &c in &trial[..trial.len() - 1] {
+        let candidate = &list[c];
+        let w = width(candidate);
+        let values: Vec<f64> = theta.rows(offset, w).iter().copied().collect();
+        offset += w;
+        if candidate.joint == Some(j)
+            && REFITTED.contains(&candidate.kind)
+            && physical(candidate, &values, Gain::NONE, settings.reach).is_err()
+        {
+            return Some(label(candidate));
+        }
+    }
+    None
+}
+
+/// Zeroes the residual and every column on the rows where their joint is
+/// at rest (slower than its at-rest speed), which drops them from every
+/// fit and held-out error.
+fn moving_rows_only(data: &mut Stacked, list: &mut [Candidate]) {
+    let dof = data.dof;
+    let resting: Vec<usize> = (0..data.residual.len())
+        .filter(|&r| data.qd[r].abs() <= data.rest[r % dof])
+        .collect();
+    let columns = list
+        .iter_mut()
+        .flat_map(|c| c.columns.iter_mut().chain(c.applied.iter_mut()));
+    for column in std::iter::once(&mut data.residual).chain(columns) {
+        for &r in &resting {
+            column[r] = 0.0;
+        }
+    }
+}
+
+/// The named Stribeck friction as effects (value and 95% interval of the
+/// joint fit at this band; held-out MSE removed on its joint's moving rows,
+/// and its share of what that joint had before any effect), and the
+/// refitted values of the dry and viscous friction named on those joints.
+fn report(
+    m: &Moments,
+    list: &[Candidate],
+    named: &[usize],
+    removed: &[(usize, f64, f64)],
+    found: &mut Found,
+) {
+    let Some((fit, se)) = fit_robust(m, list, named) else {
+        return;
+    };
+    let joints: Vec<Option<usize>> = removed.iter().map(|&(c, ..)| list[c].joint).collect();
+    let mut offset = 0;
+    for &c in named {
+        let candidate = &list[c];
+        let w = width(candidate);
+        let values: Vec<(f64, f64)> = (offset..offset + w)
+            .map(|k| (fit.theta[k], 1.96 * se[k]))
+            .collect();
+        offset += w;
+        let Some(j) = candidate
+            .joint
+            .filter(|_| joints.contains(&candidate.joint))
+        else {
+            continue;
+        };
+        match removed.iter().find(|r| r.0 == c) {
+            Some(&(_, cut, before)) => {
+                let mut effect = effect(candidate, &values, f64::INFINITY, &mut found.notes);
+                effect.heldout_mse_removed = cut;
+                effect.heldout_share = (cut / before.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+                found.effects.push(effect);
+            }
+            None if REFITTED.contains(&candidate.kind) => {
+                found.refits.push((candidate.kind, j, values));
+            }
+            None => {}
+        }
+    }
+}
+
+/// Kinds whose values the reversal stage refits on a joint where it names
+/// Stribeck friction: the friction laws of the speed that share its rows.
+const REFITTED: [Kind; 3] = [
+    Kind::ViscousFriction,
+    Kind::CoulombFriction,
+    Kind::CoulombAsymmetry,
+];
+
+/// The reversal stage's candidate for a motion-stage one: the same kind at
+/// the same joint or link, fitted with the same shape (a body whose mass
+/// the motion stage held, a modelled Coulomb level); a ripple keeps the
+/// harmonic its own search chose.
+fn counterpart(all: &[Candidate], motion: &Candidate) -> Option<Candidate> {
+    let link = |c: &Candidate| c.link.as_ref().map(|(k, _)| *k);
+    let mut found = all
+        .iter()
+        .find(|c| c.kind == motion.kind && c.joint == motion.joint && link(c) == link(motion))?
+        .clone();
+    if motion.kind != Kind::TorqueRipple {
+        found.shape = motion.shape.clone();
+        found.names = motion.names.clone();
+    }
+    Some(found)
+}
