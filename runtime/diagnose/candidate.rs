@@ -9,6 +9,7 @@ use super::search;
 pub(super) use super::shape::Shape;
 use super::shape::point_mass;
 use super::stacked::{Link, Stacked};
+use super::whole;
 
 /// One candidate: a kind, a joint or link, its columns and how its named
 /// parameters map to coefficients of those columns.
@@ -248,10 +249,39 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         if k + 1 == n {
             list.push(payload_candidate(k, link, columns.clone()));
         }
-        list.extend(super::whole::whole_candidate(k, link, &columns));
+        list.extend(whole_candidate(k, link, &columns));
         list.push(link_candidate(k, link, columns));
     }
     list
+}
+
+/// The whole-body inertial error of link `k`: its ten columns replaced by
+/// the combinations the data determine. `None` when they determine none.
+fn whole_candidate(k: usize, link: &Link, columns: &[DVector<f64>]) -> Option<Candidate> {
+    let gram = whole::gram_of(columns);
+    let (basis, _) = whole::combinations(&gram, whole::WHOLE_COLLINEAR, 1e-9)?;
+    if basis.ncols() == 0 {
+        return None;
+    }
+    let combined = (0..basis.ncols())
+        .map(|l| {
+            (0..10).fold(columns[0].scale(0.0), |z, i| {
+                z + &columns[i] * basis[(i, l)]
+            })
+        })
+        .collect::<Vec<_>>();
+    Some(Candidate {
+        kind: Kind::InertialError,
+        joint: None,
+        link: Some((k, link.name.clone())),
+        modelled: link.parameters,
+        names: whole::COMBINATIONS[..basis.ncols()].to_vec(),
+        columns: combined,
+        applied: None,
+        shape: Shape::Whole { basis, gram },
+        settings: Vec::new(),
+        searched: 1,
+    })
 }
 
 /// A payload on the last link: a point mass added to it (mass and COM).

@@ -223,8 +223,14 @@ pub(super) fn effect(
             "nominal_first_moment".into(),
             json!([base_moment.x, base_moment.y, base_moment.z]),
         );
-    } else if matches!(candidate.shape, Shape::Whole { .. }) {
-        super::whole::describe(candidate, values, &mut parameters, &mut ci95, notes);
+    } else if let Shape::Whole { basis, gram } = &candidate.shape {
+        super::whole::describe(
+            (&label(candidate), &candidate.modelled),
+            (basis, gram),
+            values,
+            (&mut parameters, &mut ci95),
+            notes,
+        );
     } else if let Shape::Tilt { gravity, across } = &candidate.shape {
         let (a, b, g) = (values[0].0, values[1].0, gravity.norm());
         let along = (g * g - a * a - b * b).max(0.0).sqrt();

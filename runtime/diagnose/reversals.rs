@@ -18,7 +18,7 @@
 
 use super::admit::{physical, searched_threshold, significant};
 use super::band::{Needs, pipeline};
-use super::candidate::{Candidate, label, width};
+use super::candidate::{Candidate, Shape, label, width};
 use super::data::stack;
 use super::diagnosis::Effect;
 use super::fit::fit;
@@ -304,10 +304,21 @@ const REFITTED: [Kind; 3] = [
 /// harmonic its own search chose.
 fn counterpart(all: &[Candidate], motion: &Candidate) -> Option<Candidate> {
     let link = |c: &Candidate| c.link.as_ref().map(|(k, _)| *k);
+    let whole = |c: &Candidate| matches!(c.shape, Shape::Whole { .. });
+    // A link's ten columns are those of its mass-and-COM candidate; a
+    // whole-body error combines them as the motion stage did.
     let mut found = all
         .iter()
-        .find(|c| c.kind == motion.kind && c.joint == motion.joint && link(c) == link(motion))?
+        .find(|c| {
+            c.kind == motion.kind && c.joint == motion.joint && link(c) == link(motion) && !whole(c)
+        })?
         .clone();
+    if let Shape::Whole { basis, .. } = &motion.shape {
+        let ten = &found.columns;
+        found.columns = (0..basis.ncols())
+            .map(|l| (0..10).fold(ten[0].scale(0.0), |z, i| z + &ten[i] * basis[(i, l)]))
+            .collect();
+    }
     if motion.kind != Kind::TorqueRipple {
         found.shape = motion.shape.clone();
         found.names = motion.names.clone();

@@ -10,10 +10,7 @@
 use nalgebra::{DMatrix, DVector, Matrix4};
 use serde_json::{Map, Value, json};
 
-use super::candidate::{Candidate, label};
-use super::kind::Kind;
-use super::shape::{Shape, physically_consistent};
-use super::stacked::Link;
+use super::shape::physically_consistent;
 
 /// Relative eigenvalue of the link's unit-diagonal Gram matrix below which
 /// a combination of its parameters is not fitted: its column is under 1%
@@ -29,7 +26,8 @@ pub const PARAMETERS: [&str; 10] = [
     "mass", "mx", "my", "mz", "ixx", "ixy", "iyy", "ixz", "iyz", "izz",
 ];
 
-const COMBINATIONS: [&str; 10] = [
+/// The names of a whole-body error's parameters.
+pub const COMBINATIONS: [&str; 10] = [
     "combination_1",
     "combination_2",
     "combination_3",
@@ -43,7 +41,7 @@ const COMBINATIONS: [&str; 10] = [
 ];
 
 /// The Gram matrix of a link's ten columns.
-fn gram_of(columns: &[DVector<f64>]) -> DMatrix<f64> {
+pub(super) fn gram_of(columns: &[DVector<f64>]) -> DMatrix<f64> {
     DMatrix::from_fn(10, 10, |i, j| columns[i].dot(&columns[j]))
 }
 
@@ -101,39 +99,6 @@ pub(super) fn combinations(
     Some((basis, null))
 }
 
-/// The whole-body inertial error of link `k`: its ten columns replaced by
-/// the combinations the data determine. `None` when they determine none.
-pub(super) fn whole_candidate(
-    k: usize,
-    link: &Link,
-    columns: &[DVector<f64>],
-) -> Option<Candidate> {
-    let gram = gram_of(columns);
-    let (basis, _) = combinations(&gram, WHOLE_COLLINEAR, 1e-9)?;
-    if basis.ncols() == 0 {
-        return None;
-    }
-    let combined = (0..basis.ncols())
-        .map(|l| {
-            (0..10).fold(columns[0].scale(0.0), |z, i| {
-                z + &columns[i] * basis[(i, l)]
-            })
-        })
-        .collect::<Vec<_>>();
-    Some(Candidate {
-        kind: Kind::InertialError,
-        joint: None,
-        link: Some((k, link.name.clone())),
-        modelled: link.parameters,
-        names: COMBINATIONS[..basis.ncols()].to_vec(),
-        columns: combined,
-        applied: None,
-        shape: Shape::Whole { basis, gram },
-        settings: Vec::new(),
-        searched: 1,
-    })
-}
-
 /// The body a whole-body fit names: the physical body nearest to the
 /// fitted one (the model's parameters plus `basis * combinations`) in the
 /// metric of the data (`gram`), and the share of the fitted change's
@@ -168,25 +133,23 @@ pub fn about_com(p: &[f64; 10]) -> (f64, [f64; 3], [f64; 6]) {
     (m, c, [i[4], i[5], i[7], i[6], i[8], i[9]])
 }
 
-/// The report's parameters of a named whole-body error (`values`: each
+/// The report's parameters of a named whole-body error (`label`, the
+/// model's `modelled` link; `values`: each
 /// combination's value and 95% half-width): the named body's mass, COM and
 /// inertia about the COM beside the model's, the combinations with their
 /// intervals, and which standard parameters the data determine; a note
 /// says that the rest are the model's.
 pub(super) fn describe(
-    candidate: &Candidate,
+    (label, modelled): (&str, &[f64; 10]),
+    (basis, gram): (&DMatrix<f64>, &DMatrix<f64>),
     values: &[(f64, f64)],
-    parameters: &mut Map<String, Value>,
-    ci95: &mut Map<String, Value>,
+    (parameters, ci95): (&mut Map<String, Value>, &mut Map<String, Value>),
     notes: &mut Vec<String>,
 ) {
-    let Shape::Whole { basis, gram } = &candidate.shape else {
-        return;
-    };
     let fitted: Vec<f64> = values.iter().map(|v| v.0).collect();
-    let (body, lost) = named_body(&candidate.modelled, basis, gram, &fitted);
+    let (body, lost) = named_body(modelled, basis, gram, &fitted);
     let (mass, com, inertia) = about_com(&body);
-    let (nominal_mass, nominal_com, nominal_inertia) = about_com(&candidate.modelled);
+    let (nominal_mass, nominal_com, nominal_inertia) = about_com(modelled);
     let known = determined(gram);
     parameters.insert("mass".into(), json!(mass));
     parameters.insert("com".into(), json!(com));
@@ -219,7 +182,7 @@ pub(super) fn describe(
         "{}: the whole body is corrected: these data determine {} combinations of the link's ten \
          inertial parameters (alone: {seen}, about the link origin); the rest are the model's, \
          moved only as far as a physical body needs{}",
-        label(candidate),
+        label,
         values.len(),
         if lost > 1e-6 {
             format!(
