@@ -217,6 +217,7 @@ fn is_null_array(v: &serde_json::Value) -> bool {
 
 fn value_text(v: &serde_json::Value) -> String {
     match v {
+        serde_json::Value::Number(n) if n.is_u64() => n.to_string(),
         serde_json::Value::Number(n) => n.as_f64().map_or(n.to_string(), sig),
         serde_json::Value::Array(a) => {
             format!(
@@ -272,6 +273,9 @@ fn unit(kind: Kind, name: &str) -> &'static str {
         (_, "physically_consistent") => "",
         (_, "mass" | "nominal_mass") => " kg",
         (_, "first_moment" | "nominal_first_moment") => " kg m",
+        (_, "inertia" | "nominal_inertia") => " kg m^2",
+        // A whole body's combinations mix units; the rest are counts and names.
+        (_, "combinations" | "determined" | "identifiable_combinations") => "",
         _ => " m",
     }
 }
