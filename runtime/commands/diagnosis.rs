@@ -35,6 +35,11 @@ pub struct DiagnoseArgs {
     /// exchanged; see docs/diagnosis.md): only for recordings checked by hand.
     #[arg(long)]
     pub no_sanity_gate: bool,
+    /// The whole text report: every note, each joint's residual regimes and
+    /// every pair of parameters the data barely tell apart (by default the
+    /// five notes that concern the most held-out error).
+    #[arg(long)]
+    pub verbose: bool,
     /// Write the named effects into the model's TOML (a `.bak` copy is kept).
     #[arg(long)]
     pub apply: bool,
@@ -91,7 +96,7 @@ pub fn diagnose(args: &DiagnoseArgs) -> Result<()> {
     };
     match args.format {
         Format::Json => crate::output::print_line(&serde_json::to_string_pretty(&report)?)?,
-        Format::Text => crate::output::print(&report.text())?,
+        Format::Text => crate::output::print(&report.text(args.verbose))?,
     }
     if let Some(dir) = &args.plots {
         for path in crate::diagnose::plots::write(dir, &report)? {

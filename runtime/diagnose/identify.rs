@@ -5,7 +5,7 @@
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::candidate::{Candidate, label, width};
+use super::candidate::{Candidate, Shape, label, width};
 use super::fit::{fit, pseudo_solve};
 use super::moments::Moments;
 
@@ -44,6 +44,15 @@ pub(super) fn identifiability(
     else {
         return Identifiability::default();
     };
+    // A whole body's combinations correlate among themselves by
+    // construction of the other effects' fit; only their link is a name.
+    let owner: Vec<Option<usize>> = selected
+        .iter()
+        .flat_map(|&c| {
+            let whole = matches!(candidates[c].shape, Shape::Whole { .. });
+            (0..width(&candidates[c])).map(move |_| whole.then_some(c))
+        })
+        .collect();
     let names: Vec<String> = selected
         .iter()
         .flat_map(|&c| {
@@ -77,7 +86,8 @@ pub(super) fn identifiability(
         for j in i + 1..k {
             let denominator = (covariance[(i, i)] * covariance[(j, j)]).sqrt();
             let correlation = covariance[(i, j)] / denominator;
-            if denominator > 0.0 && correlation.abs() > CONFOUNDED {
+            let same_body = owner[i].is_some() && owner[i] == owner[j];
+            if denominator > 0.0 && correlation.abs() > CONFOUNDED && !same_body {
                 confounded.push(Confounded {
                     first: names[i].clone(),
                     second: names[j].clone(),

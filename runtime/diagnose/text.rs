@@ -8,9 +8,16 @@ use super::diagnosis::{Diagnosis, Effect};
 use super::digits::sig;
 use super::kind::Kind;
 
+/// Notes printed without `--verbose`; the rest are counted.
+const NOTES_SHOWN: usize = 5;
+
 impl Diagnosis {
-    /// The text report (`sdnn diagnose` without `--format json`).
-    pub fn text(&self) -> String {
+    /// The text report (`sdnn diagnose` without `--format json`): what to
+    /// change first (the named effects), each joint's held-out error before
+    /// and after them, then at most five notes, those that concern the most
+    /// held-out error; `verbose` adds every note, each joint's residual
+    /// regimes and the pairs of parameters the data barely tell apart.
+    pub fn text(&self, verbose: bool) -> String {
         let mut out = String::new();
         let l = &self.layout;
         let _ = writeln!(
@@ -32,49 +39,8 @@ impl Diagnosis {
                 let _ = writeln!(out, "  - {}", finding.message);
             }
         }
-        for j in 0..self.mse_before.len() {
-            let (before, after) = (self.mse_before[j], self.mse_after[j]);
-            let torque = self.torque_unit(j + 1);
-            let _ = writeln!(
-                out,
-                "joint {}: residual RMS {} {torque} ({:.1}% of the torque RMS); held-out MSE {} -> {} {torque}^2 ({})",
-                j + 1,
-                sig(self.residual_rms[j]),
-                100.0 * self.residual_share[j],
-                sig(before),
-                sig(after),
-                percent_change(before, after)
-            );
-            let fitted = self.mse_after_fitted[j];
-            if fitted < 0.8 * after {
-                let _ = writeln!(
-                    out,
-                    "  {} {torque}^2 ({}) with Coulomb friction zero while the joint is at rest: it \
-                     sticks, and there the model's sign(qd) term follows velocity noise",
-                    sig(fitted),
-                    percent_change(before, fitted)
-                );
-            }
-            let r = &self.regimes[j];
-            let _ = writeln!(
-                out,
-                "  residual correlates with velocity {:+.2}, its sign {:+.2}, acceleration {:+.2}, \
-                 gravity load {:+.2}; mean {} {torque}",
-                r.velocity,
-                r.velocity_sign,
-                r.acceleration,
-                r.gravity_load,
-                sig(r.mean)
-            );
-        }
-        if self.effects.is_empty() {
-            let _ = writeln!(out, "missing effects: none significant");
-        } else {
-            let _ = writeln!(out, "missing effects (in the order named):");
-        }
-        for e in &self.effects {
-            let _ = writeln!(out, "  {}", self.effect_line(e));
-        }
+        self.effect_table(&mut out);
+        self.joint_table(&mut out, verbose);
         self.supported_lines(&mut out);
         if let Some(condition) = self.identifiability.condition_number {
             let _ = writeln!(
@@ -83,21 +49,147 @@ impl Diagnosis {
                 sig(condition)
             );
         }
-        for c in &self.identifiability.confounded {
-            let _ = writeln!(
-                out,
-                "  barely told apart by these data: {} ~ {} (correlation {:+.2})",
-                c.first, c.second, c.correlation
-            );
+        if verbose {
+            for c in &self.identifiability.confounded {
+                let _ = writeln!(
+                    out,
+                    "  barely told apart by these data: {} ~ {} (correlation {:+.2})",
+                    c.first, c.second, c.correlation
+                );
+            }
         }
         for u in &self.unexplained {
             let _ = writeln!(out, "unexplained: {}", u.text);
         }
-        for note in &self.notes {
-            let _ = writeln!(out, "note: {note}");
-        }
+        self.note_lines(&mut out, verbose);
         out
     }
+
+    /// The named effects, one row each: kind, where, the held-out error it
+    /// removes, its values with their 95% intervals.
+    fn effect_table(&self, out: &mut String) {
+        if self.effects.is_empty() {
+            let _ = writeln!(out, "missing effects: none significant");
+            return;
+        }
+        let _ = writeln!(
+            out,
+            "missing effects (in the order named; what to change):\n  {:<20} {:<18} {:<11} value (95% CI)",
+            "kind", "where", "removes"
+        );
+        for e in &self.effects {
+            let _ = writeln!(out, "  {}", self.effect_row(e));
+        }
+    }
+
+    /// Each joint's held-out MSE before and after the named effects, and its
+    /// residual; `verbose` adds how the residual correlates with the state.
+    fn joint_table(&self, out: &mut String, verbose: bool) {
+        let _ = writeln!(
+            out,
+            "held-out MSE per joint (before -> after the named effects):\n  {:<6} {:<14} {:<14} {:<7} residual RMS before (share of the torque RMS)",
+            "joint", "before", "after", "change"
+        );
+        for j in 0..self.mse_before.len() {
+            let (before, after) = (self.mse_before[j], self.mse_after[j]);
+            let torque = self.torque_unit(j + 1);
+            let _ = writeln!(
+                out,
+                "  {:<6} {:<14} {:<14} {:<7} {} {torque} ({:.1}%)",
+                j + 1,
+                format!("{} {torque}^2", sig(before)),
+                format!("{} {torque}^2", sig(after)),
+                percent_change(before, after),
+                sig(self.residual_rms[j]),
+                100.0 * self.residual_share[j],
+            );
+            let fitted = self.mse_after_fitted[j];
+            if fitted < 0.8 * after {
+                let _ = writeln!(
+                    out,
+                    "         {} {torque}^2 ({}) with Coulomb friction zero while the joint is at \
+                     rest: it sticks, and there the model's sign(qd) term follows velocity noise",
+                    sig(fitted),
+                    percent_change(before, fitted)
+                );
+            }
+            if verbose {
+                let r = &self.regimes[j];
+                let _ = writeln!(
+                    out,
+                    "         residual correlates with velocity {:+.2}, its sign {:+.2}, \
+                     acceleration {:+.2}, gravity load {:+.2}; mean {} {torque}",
+                    r.velocity,
+                    r.velocity_sign,
+                    r.acceleration,
+                    r.gravity_load,
+                    sig(r.mean)
+                );
+            }
+        }
+    }
+
+    /// The notes, those that concern the most held-out error first: at most
+    /// [`NOTES_SHOWN`] unless `verbose`, the rest counted.
+    fn note_lines(&self, out: &mut String, verbose: bool) {
+        let mut ranked: Vec<(f64, &String)> =
+            self.notes.iter().map(|n| (self.concern(n), n)).collect();
+        // Stable: notes of equal concern keep the diagnosis's order.
+        ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let shown = if verbose { ranked.len() } else { NOTES_SHOWN };
+        for (_, note) in ranked.iter().take(shown) {
+            let _ = writeln!(out, "note: {note}");
+        }
+        let hidden = ranked.len().saturating_sub(shown);
+        let pairs = if verbose {
+            0
+        } else {
+            self.identifiability.confounded.len()
+        };
+        if hidden + pairs > 0 {
+            let _ = writeln!(
+                out,
+                "{hidden} more notes and {pairs} pairs of parameters the data barely tell apart: \
+                 --verbose (or --format json)"
+            );
+        }
+    }
+
+    /// How much held-out error a note concerns (N m^2): a named effect's
+    /// removal for a note about it, else the share a note says an effect
+    /// "would cut" of that joint's held-out MSE before the diagnosis.
+    fn concern(&self, note: &str) -> f64 {
+        let named = self.effects.iter().find(|e| {
+            let at = match (e.joint, &e.link) {
+                (Some(j), _) => format!(" on joint {j}"),
+                (None, Some(link)) => format!("(`{link}`)"),
+                (None, None) => String::new(),
+            };
+            note.starts_with(&e.kind.name())
+                && note.split(':').next().is_some_and(|h| h.contains(&at))
+        });
+        if let Some(e) = named {
+            return e.heldout_mse_removed;
+        }
+        would_cut(note)
+            .and_then(|(joint, share)| Some(share * self.mse_before.get(joint.checked_sub(1)?)?))
+            .unwrap_or(0.0)
+    }
+}
+
+/// Parameters the JSON gives for reference, left out of the text: the
+/// model's values and a whole body's raw combinations.
+fn reference(name: &str) -> bool {
+    name.starts_with("nominal_") || name.contains("combinations")
+}
+
+/// The joint and share in "... joint J's held-out MSE by P% ...".
+fn would_cut(note: &str) -> Option<(usize, f64)> {
+    let at = note.find("'s held-out MSE by ")?;
+    let joint: usize = note[..at].rsplit(' ').next()?.parse().ok()?;
+    let rest = &note[at + "'s held-out MSE by ".len()..];
+    let percent: f64 = rest.split('%').next()?.parse().ok()?;
+    Some((joint, percent / 100.0))
 }
 
 impl Diagnosis {
@@ -112,16 +204,36 @@ impl Diagnosis {
             .is_some_and(|k| k == "prismatic")
     }
 
-    fn effect_line(&self, e: &Effect) -> String {
+    /// A named effect as a row of the effect table.
+    fn effect_row(&self, e: &Effect) -> String {
         let place = match (e.joint, &e.link) {
             (Some(j), _) => format!("joint {j}"),
-            (None, Some(link)) => format!("link `{link}`"),
+            (None, Some(link)) => format!("link {link}"),
             (None, None) => "all joints".to_string(),
         };
-        let values: Vec<String> = e
-            .parameters
+        let ambiguous = if e.ambiguous_with.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; ambiguous with {} (see notes)",
+                e.ambiguous_with.join(", ")
+            )
+        };
+        format!(
+            "{:<20} {:<18} {:<11} {}{}{ambiguous}",
+            e.kind.name(),
+            place,
+            format!("{:.0}%", 100.0 * e.heldout_share),
+            self.values_text(e).join(", "),
+            self.correction_text(e),
+        )
+    }
+
+    /// An effect's parameters with their units and 95% intervals.
+    fn values_text(&self, e: &Effect) -> Vec<String> {
+        e.parameters
             .iter()
-            .filter(|(_, v)| !v.is_null() && !is_null_array(v))
+            .filter(|(name, v)| !v.is_null() && !is_null_array(v) && !reference(name))
             .map(|(name, value)| {
                 let interval = e.ci95.get(name).map_or(String::new(), interval_text);
                 let revolute = unit(e.kind, name);
@@ -131,7 +243,16 @@ impl Diagnosis {
                 };
                 format!("{name} {}{unit}{interval}", value_text(value))
             })
-            .collect();
+            .collect()
+    }
+
+    fn effect_line(&self, e: &Effect) -> String {
+        let place = match (e.joint, &e.link) {
+            (Some(j), _) => format!("joint {j}"),
+            (None, Some(link)) => format!("link `{link}`"),
+            (None, None) => "all joints".to_string(),
+        };
+        let values = self.values_text(e);
         let whose = match e.joint {
             Some(j) => format!("joint {j}'s"),
             None => "the joints'".to_string(),

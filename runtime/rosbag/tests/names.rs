@@ -165,7 +165,7 @@ fn a_bag_is_diagnosed_like_a_csv() {
                 .iter()
                 .any(|e| e.kind == crate::diagnose::Kind::CoulombFriction && e.joint == Some(j)),
             "{}",
-            d.text()
+            d.text(true)
         );
     }
     // Without --joints the model's joint names pick the same columns.
