@@ -177,6 +177,17 @@ impl Diagnosis {
     }
 }
 
+/// "; ambiguous with ..." for an effect with runners-up, else nothing.
+fn ambiguous_text(e: &Effect) -> String {
+    if e.ambiguous_with.is_empty() {
+        return String::new();
+    }
+    format!(
+        "; ambiguous with {} (see notes)",
+        e.ambiguous_with.join(", ")
+    )
+}
+
 /// Parameters the JSON gives for reference, left out of the text: the
 /// model's values and a whole body's raw combinations.
 fn reference(name: &str) -> bool {
@@ -211,14 +222,7 @@ impl Diagnosis {
             (None, Some(link)) => format!("link {link}"),
             (None, None) => "all joints".to_string(),
         };
-        let ambiguous = if e.ambiguous_with.is_empty() {
-            String::new()
-        } else {
-            format!(
-                "; ambiguous with {} (see notes)",
-                e.ambiguous_with.join(", ")
-            )
-        };
+        let ambiguous = ambiguous_text(e);
         format!(
             "{:<20} {:<18} {:<11} {}{}{ambiguous}",
             e.kind.name(),
@@ -258,14 +262,7 @@ impl Diagnosis {
             None => "the joints'".to_string(),
         };
         let correction = self.correction_text(e);
-        let ambiguous = if e.ambiguous_with.is_empty() {
-            String::new()
-        } else {
-            format!(
-                "; ambiguous with {} (see notes)",
-                e.ambiguous_with.join(", ")
-            )
-        };
+        let ambiguous = ambiguous_text(e);
         format!(
             "{} on {place}: {}{correction}; removes {:.0}% of {whose} held-out MSE ({} {}^2){ambiguous}",
             e.kind.name(),
