@@ -6,6 +6,7 @@
 use nalgebra::{DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, width};
+use super::data::EXTENT_MARGIN;
 use super::fit::Fit;
 use super::gain::Gain;
 use super::kind::Kind;
@@ -47,14 +48,13 @@ pub(super) fn physical(
                 unreachable!("matched above")
             };
             let distance = values.iter().map(|h| h * h).sum::<f64>().sqrt() / base_mass;
-            if distance <= reach {
-                return Ok(());
-            }
-            return Err(format!(
-                "{at}: the data fit a first moment that puts the centre of mass {distance:.2} m \
-                 from the link origin at the modelled mass {base_mass:.4} kg (the arm's size is \
-                 {reach:.2} m): not a physical body; not named (it {cut})"
-            ));
+            return within(candidate, distance, reach).map_err(|bound| {
+                format!(
+                    "{at}: the data fit a first moment that puts the centre of mass {distance:.2} m \
+                     from the link origin at the modelled mass {base_mass:.4} kg ({bound}): not a \
+                     physical body; not named (it {cut})"
+                )
+            });
         }
         Kind::InertialError => {
             let distance = values[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
@@ -71,13 +71,16 @@ pub(super) fn physical(
                      payload); not named (it {cut})"
                 ));
             }
-            if value > 0.0 && distance <= reach {
+            let bound = within(candidate, distance, reach);
+            if value > 0.0 && bound.is_ok() {
                 return Ok(());
             }
+            let bound = bound
+                .err()
+                .unwrap_or_else(|| "a mass must be positive".to_string());
             return Err(format!(
                 "{at}: the data fit a mass of {value:.4} kg with its centre of mass {distance:.2} m \
-                 from the link origin (the arm's size is {reach:.2} m): not a physical body; not \
-                 named (it {cut})"
+                 from the link origin ({bound}): not a physical body; not named (it {cut})"
             ));
         }
         _ if value <= 0.0 => match candidate.kind {
@@ -156,11 +159,26 @@ fn plausible_body(
         ));
     }
     let distance = Vector3::new(body[1], body[2], body[3]).norm() / mass;
-    if distance > reach {
-        return Err(format!(
+    within(candidate, distance, reach).map_err(|bound| {
+        format!(
             "{at}: the data fit a body whose centre of mass lies {distance:.2} m from the link \
-             origin (the arm's size is {reach:.2} m): not a physical correction; not named (it \
-             {cut})"
+             origin ({bound}): not a physical correction; not named (it {cut})"
+        )
+    })
+}
+
+/// Whether a link's fitted centre of mass, `distance` from its origin, lies
+/// within the link's extent (its child joints and modelled COM, plus a
+/// margin) and the arm's size `reach`; if not, which bound it leaves.
+fn within(candidate: &Candidate, distance: f64, reach: f64) -> Result<(), String> {
+    if distance > reach {
+        return Err(format!("the arm's size is {reach:.2} m"));
+    }
+    if distance > candidate.extent {
+        return Err(format!(
+            "beyond the link's extent, {:.2} m: its farthest child joint or modelled COM plus \
+             {EXTENT_MARGIN} m",
+            candidate.extent
         ));
     }
     Ok(())
@@ -314,6 +332,7 @@ mod tests {
             joint,
             link: None,
             modelled: [0.0; 10],
+            extent: f64::INFINITY,
             names: vec![],
             columns: vec![],
             applied: None,
@@ -325,6 +344,26 @@ mod tests {
 
     fn gain(share: f64) -> Gain {
         Gain { share, joint: 0 }
+    }
+
+    /// The issue's forearm: a first moment that puts the COM 0.64 m out on
+    /// a link whose child joint is 0.57 m away is refused; 0.40 m is not.
+    #[test]
+    fn a_com_beyond_the_link_is_not_this_link() {
+        let forearm = Candidate {
+            kind: Kind::InertialError,
+            link: Some((2, "forearm".into())),
+            extent: 0.57 + EXTENT_MARGIN,
+            shape: Shape::Moment {
+                offset: [0.0; 10],
+                base_mass: 3.87,
+                base_moment: Vector3::new(0.0, 0.0, 3.87 * 0.3),
+            },
+            ..candidate(Kind::InertialError, None)
+        };
+        let note = physical(&forearm, &[0.0, 0.0, 3.87 * 0.64], gain(0.2), 2.0).unwrap_err();
+        assert!(note.contains("beyond the link's extent, 0.62 m"), "{note}");
+        assert!(physical(&forearm, &[0.0, 0.0, 3.87 * 0.40], gain(0.2), 2.0).is_ok());
     }
 
     #[test]

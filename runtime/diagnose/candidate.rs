@@ -22,6 +22,9 @@ pub(super) struct Candidate {
     /// The link's modelled standard parameters (inertial candidates; zero
     /// otherwise): the corrected body is these plus the fitted change.
     pub(super) modelled: [f64; 10],
+    /// How far from the link origin its centre of mass may plausibly lie
+    /// (inertial candidates; infinite otherwise), m.
+    pub(super) extent: f64,
     pub(super) names: Vec<&'static str>,
     pub(super) columns: Vec<DVector<f64>>,
     /// What the generated model computes for this effect once applied, when
@@ -145,6 +148,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             joint: Some(j),
             link: None,
             modelled: [0.0; 10],
+            extent: f64::INFINITY,
             names: vec![name],
             columns: vec![own(j, f)],
             applied: None,
@@ -220,6 +224,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         joint: None,
         link: None,
         modelled: [0.0; 10],
+        extent: f64::INFINITY,
         names,
         columns,
         applied: None,
@@ -275,6 +280,7 @@ fn whole_candidate(k: usize, link: &Link, columns: &[DVector<f64>]) -> Option<Ca
         joint: None,
         link: Some((k, link.name.clone())),
         modelled: link.parameters,
+        extent: link.extent,
         names: whole::COMBINATIONS[..basis.ncols()].to_vec(),
         columns: combined,
         applied: None,
@@ -315,6 +321,7 @@ fn link_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidat
         joint: None,
         link: Some((k, link.name.clone())),
         modelled: link.parameters,
+        extent: link.extent,
         names: vec!["mass", "cx", "cy", "cz"],
         columns,
         applied: None,

@@ -442,6 +442,7 @@ mod tests {
             joint: Some(0),
             link: None,
             modelled: [0.0; 10],
+            extent: f64::INFINITY,
             names: vec!["value"],
             columns: vec![column],
             applied: None,

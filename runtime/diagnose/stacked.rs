@@ -31,10 +31,13 @@ impl Stacked {
     }
 }
 
-/// A moving link of the model: its name and standard parameters.
+/// A moving link of the model: its name, standard parameters and extent.
 pub(crate) struct Link {
     pub(super) name: String,
     pub(super) parameters: [f64; 10],
+    /// How far from its origin a centre of mass of this link is plausible,
+    /// m (see `data::links`); infinite for the last link.
+    pub(super) extent: f64,
 }
 
 /// How recordings became the diagnosed rows (reported).
