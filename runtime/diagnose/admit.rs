@@ -7,7 +7,7 @@ use nalgebra::{DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, width};
 use super::data::EXTENT_MARGIN;
-use super::fit::Fit;
+use super::fit::{Fit, fit};
 use super::gain::Gain;
 use super::kind::Kind;
 use super::moments::Moments;
@@ -182,6 +182,23 @@ fn within(candidate: &Candidate, distance: f64, reach: f64) -> Result<(), String
         ));
     }
     Ok(())
+}
+
+/// Whether the last candidate of `trial`, fitted with the others, is
+/// significant and physical: what naming it, or putting it in a named
+/// effect's place, requires.
+pub(super) fn admits(
+    m: &Moments,
+    candidates: &[Candidate],
+    trial: &[usize],
+    settings: super::settings::Settings,
+) -> bool {
+    let Some(&last) = trial.last() else {
+        return false;
+    };
+    fit(m, candidates, trial, |_| true)
+        .and_then(|full| significant(m, candidates, trial, &full, settings.min_t))
+        .is_some_and(|v| physical(&candidates[last], &v, Gain::NONE, settings.reach).is_ok())
 }
 
 /// Largest torque-scale error (either way), delay (s) and base tilt (rad)

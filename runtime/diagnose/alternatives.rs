@@ -5,9 +5,8 @@
 //! tell such pairs apart; the report says so instead of hiding the
 //! runner-up.
 
-use super::admit::{physical, significant};
+use super::admit::admits;
 use super::candidate::{Candidate, label};
-use super::fit::fit;
 use super::gain::{Gain, relative_gain};
 use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
@@ -59,9 +58,7 @@ pub(super) fn runners_up(
         .filter(|(r, _, _)| {
             let mut trial = before.to_vec();
             trial.push(*r);
-            fit(m, candidates, &trial, |_| true)
-                .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
-                .is_some_and(|v| physical(&candidates[*r], &v, Gain::NONE, settings.reach).is_ok())
+            admits(m, candidates, &trial, settings)
         })
         .filter(|(r, _, _)| {
             let mut both = before.to_vec();
@@ -162,9 +159,7 @@ pub(super) fn payload_over_link_error(
     trial.push(payload);
     let swapped = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
     let close = swapped.iter().zip(&mse).all(|(s, n)| *s <= NEAR * n);
-    let admissible = fit(m, candidates, &trial, |_| true)
-        .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
-        .is_some_and(|v| physical(&candidates[payload], &v, Gain::NONE, settings.reach).is_ok());
+    let admissible = admits(m, candidates, &trial, settings);
     if !(close && admissible) {
         return;
     }

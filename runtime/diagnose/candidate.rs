@@ -268,13 +268,7 @@ fn whole_candidate(k: usize, link: &Link, columns: &[DVector<f64>]) -> Option<Ca
     if basis.ncols() == 0 {
         return None;
     }
-    let combined = (0..basis.ncols())
-        .map(|l| {
-            (0..10).fold(columns[0].scale(0.0), |z, i| {
-                z + &columns[i] * basis[(i, l)]
-            })
-        })
-        .collect::<Vec<_>>();
+    let combined = whole::combine(columns, &basis);
     Some(Candidate {
         kind: Kind::InertialError,
         joint: None,

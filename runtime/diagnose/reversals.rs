@@ -314,10 +314,7 @@ fn counterpart(all: &[Candidate], motion: &Candidate) -> Option<Candidate> {
         })?
         .clone();
     if let Shape::Whole { basis, .. } = &motion.shape {
-        let ten = &found.columns;
-        found.columns = (0..basis.ncols())
-            .map(|l| (0..10).fold(ten[0].scale(0.0), |z, i| z + &ten[i] * basis[(i, l)]))
-            .collect();
+        found.columns = super::whole::combine(&found.columns, basis);
     }
     if motion.kind != Kind::TorqueRipple {
         found.shape = motion.shape.clone();

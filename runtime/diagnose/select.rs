@@ -2,7 +2,7 @@
 //! checks and [`super::admit`]'s significance and physical-sign checks, and
 //! a backward prune.
 
-use super::admit::{MASS_FACTOR, physical, searched_threshold, significant};
+use super::admit::{MASS_FACTOR, admits, physical, searched_threshold, significant};
 use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::fit::{fit, identifiability, pseudo_solve};
@@ -353,9 +353,7 @@ fn swap_bodies(
         }
         let mut trial = others;
         trial.push(*c);
-        let admitted = fit(m, candidates, &trial, |_| true)
-            .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
-            .is_some_and(|v| physical(&candidates[*c], &v, Gain::NONE, settings.reach).is_ok());
+        let admitted = admits(m, candidates, &trial, settings);
         if admitted {
             selected[at] = *c;
         }
@@ -391,10 +389,7 @@ fn one_body(
         trial.push(c);
         let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
         let near = mse.iter().zip(&current).all(|(t, n)| *t <= NEAR * n);
-        let admitted = near
-            && fit(m, candidates, &trial, |_| true)
-                .and_then(|full| significant(m, candidates, &trial, &full, settings.min_t))
-                .is_some_and(|v| physical(&candidates[c], &v, Gain::NONE, settings.reach).is_ok());
+        let admitted = near && admits(m, candidates, &trial, settings);
         admitted.then(|| (c, mse.iter().sum::<f64>()))
     })
     .into_iter()

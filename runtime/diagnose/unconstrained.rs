@@ -16,7 +16,7 @@ use super::heldout::cv_mse_per_joint;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
 use super::shape::{physically_consistent, pseudo_inertia_margin};
-use super::whole::combinations;
+use super::whole::{combinations, combine};
 
 /// Column norm, relative to the largest of the link's, below which a column
 /// is rounding.
@@ -158,13 +158,7 @@ fn base_parameters(m: &Moments, candidates: &[Candidate], c: usize) -> Option<Ba
     let mut free = candidates.to_vec();
     let columns = &candidates[c].columns;
     free[c].shape = Shape::Linear;
-    free[c].columns = (0..k)
-        .map(|l| {
-            (0..10).fold(columns[0].scale(0.0), |z, i| {
-                z + &columns[i] * basis[(i, l)]
-            })
-        })
-        .collect();
+    free[c].columns = combine(columns, &basis);
     Some((reduced, free, basis, null))
 }
 

@@ -45,6 +45,13 @@ pub(super) fn gram_of(columns: &[DVector<f64>]) -> DMatrix<f64> {
     DMatrix::from_fn(10, 10, |i, j| columns[i].dot(&columns[j]))
 }
 
+/// A link's ten columns combined as `basis` (10 x k) says: k columns.
+pub(super) fn combine(ten: &[DVector<f64>], basis: &DMatrix<f64>) -> Vec<DVector<f64>> {
+    (0..basis.ncols())
+        .map(|l| (0..10).fold(ten[0].scale(0.0), |z, i| z + &ten[i] * basis[(i, l)]))
+        .collect()
+}
+
 /// The unit-diagonal scaling of a Gram matrix: column norms, zero for a
 /// column at rounding level (`rounding` times the largest norm).
 fn column_norms(gram: &DMatrix<f64>, rounding: f64) -> Vec<f64> {
