@@ -112,7 +112,7 @@ pub(super) fn select(
             let mut trial = selected.clone();
             trial.push(c);
             let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-            (c, relative_gain(&current, &mse, &initial), mse)
+            (c, relative_gain(&current, &mse, &current), mse)
         })
         .into_iter()
         .filter(|(_, gain, _)| gain.share.is_finite())
@@ -185,7 +185,7 @@ pub(super) fn select(
         let gain = relative_gain(
             &current,
             &cv_mse(m, dof, candidates, &trial, Scoring::Fitted),
-            &initial,
+            &current,
         );
         if gain.share >= settings.min_gain {
             notes.push(format!(
@@ -336,7 +336,7 @@ fn swap_bodies(
             let mut trial = others.clone();
             trial.push(c);
             let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-            (c, relative_gain(&current, &mse, initial), mse)
+            (c, relative_gain(&current, &mse, &current), mse)
         })
         .into_iter()
         .filter(|(_, gain, _)| gain.share.is_finite())
