@@ -2,7 +2,7 @@
 //! checks and [`super::admit`]'s significance and physical-sign checks, and
 //! a backward prune.
 
-use super::admit::{MASS_FACTOR, admits, physical, searched_threshold, significant};
+use super::admit::{MASS_FACTOR, admits, levels_hold, physical, searched_threshold, significant};
 use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::fit::{fit, identifiability, pseudo_solve};
@@ -166,7 +166,9 @@ pub(super) fn select(
             refused.push(c);
             continue;
         };
-        if let Err(note) = physical(&candidates[c], &values, gain, settings.reach) {
+        let plausible = physical(&candidates[c], &values, gain, settings.reach)
+            .and_then(|()| levels_hold(candidates, &trial, full.theta.as_slice()));
+        if let Err(note) = plausible {
             notes.push(note);
             refused.push(c);
             continue;
@@ -256,6 +258,7 @@ pub(super) fn prune(
             match significant(m, candidates, &trial, &full, settings.min_t) {
                 Some(values) => {
                     physical(&candidates[c], &values, Gain::NONE, settings.reach).is_err()
+                        || levels_hold(candidates, &trial, full.theta.as_slice()).is_err()
                 }
                 None => true,
             }
