@@ -9,7 +9,7 @@ use super::settings::Settings;
 use super::stacked::{GENERIC_FEATURES, Layout, Link, Stacked};
 use crate::dynamics::{Dynamics, model_torques};
 use crate::oracle::{self, Model, coulomb_sign};
-use crate::preprocess::{Filter, Pipeline, Preprocess, step};
+use crate::preprocess::{Filter, Pipeline, Preprocess, ZeroPhaseLowPass, step};
 use crate::trajectory::Trajectory;
 
 /// Shortest cross-validation segment, s.
@@ -245,7 +245,7 @@ pub(super) fn stack(
         }
         let settings = pipeline.for_recording(raw);
         let (rows, samples, dt) = match settings.filter {
-            Filter::Butterworth { .. } => {
+            Filter::Butterworth { cutoff_hz } => {
                 // Parallel filtering: the whole equation tau = Y theta passes
                 // the torque filter, so every column is compared exactly.
                 let traj = settings.states_at_full_rate(raw)?;
@@ -272,9 +272,15 @@ pub(super) fn stack(
                 )?;
                 // A column of zeros (a tilt or Stribeck velocity not built
                 // at this stage) stays zero through any linear filter.
-                for column in rows.filtered_mut().filter(|c| c.iter().any(|x| *x != 0.0)) {
-                    smooth_per_joint(column, n, |x| settings.smooth(x, dt))?;
-                }
+                let mut filtered: Vec<&mut [f64]> = rows
+                    .filtered_mut()
+                    .filter(|c| c.iter().any(|x| *x != 0.0))
+                    .map(|c| c.as_mut_slice())
+                    .collect();
+                let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
+                crate::parallel::for_parts_mut(&mut filtered, |part| {
+                    filter.apply_interleaved(part, n)
+                });
                 (rows, Pipeline::kept_samples(&settings, traj.len(), dt), dt)
             }
             _ => {
@@ -558,21 +564,6 @@ fn torque_rate(tau: &DMatrix<f64>, dt: f64) -> DMatrix<f64> {
         }
     }
     rate
-}
-
-/// Applies `smooth` to each joint's time series of a (sample, joint) column.
-fn smooth_per_joint(
-    column: &mut [f64],
-    dof: usize,
-    smooth: impl Fn(&[f64]) -> Result<Vec<f64>, crate::preprocess::PreprocessError>,
-) -> anyhow::Result<()> {
-    for j in 0..dof {
-        let series: Vec<f64> = column.iter().skip(j).step_by(dof).copied().collect();
-        for (at, v) in smooth(&series)?.into_iter().enumerate() {
-            column[at * dof + j] = v;
-        }
-    }
-    Ok(())
 }
 
 /// With the thesis preprocessing, joints slower than this (rad/s; times
