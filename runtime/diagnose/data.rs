@@ -83,7 +83,6 @@ pub(super) fn links(model: &dyn Dynamics) -> Vec<Link> {
 }
 
 /// Per-row signals of one recording, (sample, joint) rows, sample-major.
-#[derive(Default)]
 struct Rows {
     residual: Vec<f64>,
     measured: Vec<f64>,
@@ -167,16 +166,28 @@ impl Rows {
     /// velocity of the grid at the reversal stage, the generic features of
     /// the unexplained-structure check at the motion stage; the links'
     /// inertial columns with `bodies`.
+    /// Every column holds `capacity` rows without growing (a grown vector
+    /// is copied, and its pages touched twice).
     fn with_columns(dof: usize, capacity: usize, (stage, bodies): (Stage, bool)) -> Rows {
         let (stribeck, generic) = match stage {
             Stage::Reversals => (stribeck_velocities().len(), 0),
             Stage::Motion => (0, GENERIC_FEATURES.len()),
         };
+        let column = |_: usize| Vec::with_capacity(capacity);
+        let columns = |count: usize| (0..count).map(column).collect();
         Rows {
-            inertial: vec![Vec::with_capacity(capacity); if bodies { 10 * dof } else { 0 }],
-            generic: vec![Vec::with_capacity(capacity); generic],
-            stribeck: vec![Vec::with_capacity(capacity); stribeck],
-            ..Rows::default()
+            residual: column(0),
+            measured: column(0),
+            qd: column(0),
+            qdd: column(0),
+            gravity: column(0),
+            coulomb_applied: column(0),
+            own: std::array::from_fn(column),
+            inertial: columns(if bodies { 10 * dof } else { 0 }),
+            generic: columns(generic),
+            tilt: std::array::from_fn(column),
+            measured_rate: column(0),
+            stribeck: columns(stribeck),
         }
     }
 
@@ -321,7 +332,8 @@ pub(super) fn stack(
         Some(k) => vec![k; kept.len()],
         None => segment_counts(&durations),
     };
-    let mut all = Rows::with_columns(n, 0, (stage, bodies));
+    let total_rows = kept.iter().map(|rows| rows.residual.len()).sum();
+    let mut all = Rows::with_columns(n, total_rows, (stage, bodies));
     let mut group = Vec::new();
     for ((rows, &count), &seconds) in kept.iter().zip(&counts).zip(&durations) {
         let samples = rows.residual.len() / n;
@@ -424,9 +436,11 @@ fn rows(
     };
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     for s in 0..traj.len() {
-        let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
-        let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));
+        for i in 0..n {
+            (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
+        }
         let y = match bodies {
             true => model.regressor(&q, &qd, &qdd)?,
             false => DMatrix::zeros(0, 0),
