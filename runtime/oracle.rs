@@ -187,6 +187,28 @@ pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
     g
 }
 
+/// [`gravity`] of `model` with its gravity vector replaced by each of
+/// `directions` in turn (the same numbers as `gravity` of each such
+/// model), the bodies' frames computed once for all of them.
+pub fn gravity_along<const K: usize>(
+    model: &Model,
+    q: &[f64],
+    directions: &[Vector3<f64>; K],
+) -> [DVector<f64>; K] {
+    let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
+    let zero = vec![0.0; model.dof()];
+    let frames = frames(model, q, &zero, &zero);
+    directions.map(|direction| {
+        let mut g = torque_in_frames(model, &params, direction, &frames, (q, &zero, &zero));
+        for body in &model.bodies {
+            let (d, m, _) = body.driver;
+            let (q, _, _) = body.state(q, &zero, &zero);
+            g[d] += m * position_torque(&body.effects, q);
+        }
+        g
+    })
+}
+
 /// Coriolis and centrifugal vector c(q, qd), without gravity or effects.
 pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
     let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
@@ -254,8 +276,28 @@ fn rigid_body_torque(
     qd: &[f64],
     qdd: &[f64],
 ) -> DVector<f64> {
+    let frames = frames(model, q, qd, qdd);
+    torque_in_frames(model, params, gravity, &frames, (q, qd, qdd))
+}
+
+/// Every body's frame in its parent's at the state (rotation, origin).
+fn frames(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
+    model
+        .bodies
+        .iter()
+        .map(|body| body.placement(body.state(q, qd, qdd).0))
+        .collect()
+}
+
+/// [`rigid_body_torque`] with the bodies' `frames` given.
+fn torque_in_frames(
+    model: &Model,
+    params: &[[f64; INERTIAL_PARAMETERS]],
+    gravity: Vector3<f64>,
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    (q, qd, qdd): (&[f64], &[f64], &[f64]),
+) -> DVector<f64> {
     let n = model.bodies.len();
-    let mut rotations = Vec::with_capacity(n);
     let mut forces = Vec::with_capacity(n);
     let mut moments = Vec::with_capacity(n);
     // Base: at rest, accelerating upwards to emulate gravity.
@@ -264,8 +306,8 @@ fn rigid_body_torque(
     for (i, body) in model.bodies.iter().enumerate() {
         let (mut w, mut wd, mut vd) = body.parent.map_or(base, |p| motions[p]);
         let a = body.axis.into_inner();
-        let (q, qd, qdd) = body.state(q, qd, qdd);
-        let (r, p) = body.placement(q);
+        let (_, qd, qdd) = body.state(q, qd, qdd);
+        let (r, p) = frames[i];
         let rt = r.transpose();
         vd = rt * (vd + wd.cross(&p) + w.cross(&w.cross(&p)));
         let w_parent = rt * w;
@@ -280,14 +322,13 @@ fn rigid_body_torque(
         let (m, h, inertia) = unpack(&params[i]);
         forces.push(m * vd + wd.cross(&h) + w.cross(&w.cross(&h)));
         moments.push(inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd));
-        rotations.push((r, p));
         motions.push((w, wd, vd));
     }
     let mut tau = DVector::zeros(model.dof());
     for i in (0..n).rev() {
         let body = &model.bodies[i];
         if let Some(parent) = body.parent {
-            let (r, p) = rotations[i];
+            let (r, p) = frames[i];
             let force = r * forces[i];
             let moment = r * moments[i] + p.cross(&force);
             forces[parent] += force;

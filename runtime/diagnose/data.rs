@@ -127,6 +127,14 @@ impl Rows {
         .chain(self.stribeck.iter_mut())
     }
 
+    /// Every column emptied, its memory kept.
+    fn clear(&mut self) {
+        for column in [&mut self.qd, &mut self.qdd, &mut self.gravity] {
+            column.clear();
+        }
+        self.filtered_mut().for_each(Vec::clear);
+    }
+
     /// The first row where any signal is not finite.
     fn first_non_finite(&self) -> Option<usize> {
         [&self.residual, &self.measured]
@@ -242,6 +250,11 @@ pub(super) fn stack(
     let levers = crate::dynamics::joint_levers(model);
     let moving: Vec<f64> = levers.iter().map(|lever| MOVING * lever).collect();
     let mut kept = Vec::new();
+    // One recording's rows at a time, in memory reused for the next: the
+    // full-rate columns are most of what the diagnosis allocates, and
+    // freshly allocated memory is paid again in page faults.
+    let longest = recordings.iter().map(Trajectory::len).max().unwrap_or(0);
+    let mut rows = Rows::with_columns(n, longest * n, (stage, bodies));
     let mut durations = Vec::new();
     let mut at_rest = vec![0.0_f64; n];
     let mut trimmed = 0;
@@ -255,7 +268,7 @@ pub(super) fn stack(
             );
         }
         let settings = pipeline.for_recording(raw);
-        let (rows, samples, dt) = match settings.filter {
+        let (samples, dt) = match settings.filter {
             Filter::Butterworth { cutoff_hz } => {
                 // Parallel filtering: the whole equation tau = Y theta passes
                 // the torque filter, so every column is compared exactly.
@@ -273,9 +286,9 @@ pub(super) fn stack(
                 for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
                     *largest = largest.max(*r);
                 }
-                let mut rows = rows(
-                    model,
-                    models(&tilted),
+                fill(
+                    &mut rows,
+                    (model, models(&tilted)),
                     &traj,
                     &band,
                     (stage, bodies),
@@ -292,7 +305,7 @@ pub(super) fn stack(
                 crate::parallel::for_parts_mut(&mut filtered, |part| {
                     filter.apply_interleaved(part, n)
                 });
-                (rows, Pipeline::kept_samples(&settings, traj.len(), dt), dt)
+                (Pipeline::kept_samples(&settings, traj.len(), dt), dt)
             }
             _ => {
                 let traj = settings.apply(raw)?;
@@ -301,18 +314,15 @@ pub(super) fn stack(
                     *largest = largest.max(*r);
                 }
                 let band = Band::of(&traj, &moving);
-                (
-                    rows(
-                        model,
-                        models(&tilted),
-                        &traj,
-                        &band,
-                        (stage, bodies),
-                        &levers,
-                    )?,
-                    (0..traj.len()).collect(),
-                    dt,
-                )
+                fill(
+                    &mut rows,
+                    (model, models(&tilted)),
+                    &traj,
+                    &band,
+                    (stage, bodies),
+                    &levers,
+                )?;
+                ((0..traj.len()).collect(), dt)
             }
         };
         if let Some(at) = rows.first_non_finite() {
@@ -412,24 +422,25 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
         .collect()
 }
 
-/// The model's residual and candidate columns at every sample of `traj`.
+/// Fills `rows` (cleared first) with the model's residual and candidate
+/// columns at every sample of `traj`.
 /// The dry-friction columns (Coulomb's moving sign, Stribeck's for each
 /// velocity of the grid at the reversal stage) follow `band`'s velocity and
 /// at-rest speeds (see [`rest_velocities`]).
-fn rows(
-    model: &dyn Dynamics,
-    tilted: Option<&[Model; 3]>,
+fn fill(
+    rows: &mut Rows,
+    (model, tilted): (&dyn Dynamics, Option<&Tilted>),
     traj: &Trajectory,
     band: &Band,
     (stage, bodies): (Stage, bool),
     levers: &[f64],
-) -> anyhow::Result<Rows> {
+) -> anyhow::Result<()> {
     let n = model.dof();
     let predicted = model_torques(model, traj)?;
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
-    let mut rows = Rows::with_columns(n, traj.len() * n, (stage, bodies));
+    rows.clear();
     let velocities = match stage {
         Stage::Reversals => stribeck_velocities(),
         Stage::Motion => Vec::new(),
@@ -446,7 +457,7 @@ fn rows(
             false => DMatrix::zeros(0, 0),
         };
         let load = model.gravity(&q)?;
-        let tilt = tilted.map(|m| m.each_ref().map(|m| oracle::gravity(m, &q)));
+        let tilt = tilted.map(|t| oracle::gravity_along(&t.model, &q, &t.directions));
         for i in 0..n {
             let tau = traj.tau()[(s, i)];
             rows.residual.push(tau - predicted[(s, i)]);
@@ -485,7 +496,7 @@ fn rows(
             }
         }
     }
-    Ok(rows)
+    Ok(())
 }
 
 /// The stacked Stribeck columns as (fitted, applied) pairs per velocity.
@@ -515,27 +526,38 @@ fn coulomb_levels(model: &dyn Dynamics) -> Vec<f64> {
         .collect()
 }
 
-/// A tilted base's candidate shape and the model with unit gravity along
-/// each of its two directions across the model's gravity (the gravity
-/// torque is linear in the gravity vector), or `None` without a
+/// The model whose gravity torque is taken along each direction of a
+/// tilted base's columns.
+struct Tilted {
+    model: Model,
+    /// Unit gravity along two directions across the model's gravity, and
+    /// along it.
+    directions: [Vector3<f64>; 3],
+}
+
+/// A tilted base's candidate shape and its [`Tilted`] columns' model (the
+/// gravity torque is linear in the gravity vector), or `None` without a
 /// description or without gravity.
-fn tilted_models(model: &dyn Dynamics) -> Option<(Shape, [Model; 3])> {
+fn tilted_models(model: &dyn Dynamics) -> Option<(Shape, Tilted)> {
     let description = crate::dynamics::parsed_description(model).ok()?;
     let nominal = Model::from_description(&description);
     let down = nominal.gravity.try_normalize(1e-9)?;
     let across = tilt_directions(&down);
-    let models = [across[0], across[1], down].map(|direction| Model {
-        gravity: direction,
-        ..nominal.clone()
-    });
     let shape = Shape::Tilt {
         gravity: nominal.gravity,
         across,
     };
-    Some((shape, models))
+    let directions = [across[0], across[1], down];
+    Some((
+        shape,
+        Tilted {
+            model: nominal,
+            directions,
+        },
+    ))
 }
 
-fn models(tilted: &Option<(Shape, [Model; 3])>) -> Option<&[Model; 3]> {
+fn models(tilted: &Option<(Shape, Tilted)>) -> Option<&Tilted> {
     tilted.as_ref().map(|(_, models)| models)
 }
 
