@@ -151,19 +151,21 @@ impl ZeroPhaseLowPass {
             .collect();
         let mut buffer = vec![[0.0; LANES]; n + 2 * pad];
         for batch in series.chunks(LANES) {
-            for (l, &(c, j)) in batch.iter().enumerate() {
-                let x = |s: usize| columns[c][s * width + j];
-                // Odd reflection, as in `apply`.
-                for i in 1..=pad {
-                    buffer[pad - i][l] = 2.0 * x(0) - x(i);
-                    buffer[pad + n - 1 + i][l] = 2.0 * x(n - 1) - x(n - 1 - i);
-                }
-                for s in 0..n {
-                    buffer[pad + s][l] = x(s);
-                }
+            // Sample by sample, so that each sample's lanes are written
+            // together; unused lanes hold zeros.
+            let x = |l: usize, s: usize| {
+                batch
+                    .get(l)
+                    .map_or(0.0, |&(c, j)| columns[c][s * width + j])
+            };
+            for (s, v) in buffer[pad..pad + n].iter_mut().enumerate() {
+                *v = std::array::from_fn(|l| x(l, s));
             }
-            for l in batch.len()..LANES {
-                buffer.iter_mut().for_each(|v| v[l] = 0.0);
+            // Odd reflection, as in `apply`.
+            for i in 1..=pad {
+                buffer[pad - i] = std::array::from_fn(|l| 2.0 * x(l, 0) - x(l, i));
+                buffer[pad + n - 1 + i] =
+                    std::array::from_fn(|l| 2.0 * x(l, n - 1) - x(l, n - 1 - i));
             }
             for section in &self.sections {
                 section.run_lanes(buffer.iter_mut());
@@ -171,9 +173,9 @@ impl ZeroPhaseLowPass {
             for section in &self.sections {
                 section.run_lanes(buffer.iter_mut().rev());
             }
-            for (l, &(c, j)) in batch.iter().enumerate() {
-                for s in 0..n {
-                    columns[c][s * width + j] = buffer[pad + s][l];
+            for (s, v) in buffer[pad..pad + n].iter().enumerate() {
+                for (l, &(c, j)) in batch.iter().enumerate() {
+                    columns[c][s * width + j] = v[l];
                 }
             }
         }
