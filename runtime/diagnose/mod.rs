@@ -98,6 +98,7 @@ mod moments;
 pub mod plots;
 mod report;
 mod reversals;
+mod rows;
 mod sanity;
 mod search;
 mod select;

@@ -31,6 +31,7 @@ use super::settings::Settings;
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 use crate::dynamics::Dynamics;
+use crate::parallel::map_in_order;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
 
@@ -145,8 +146,14 @@ pub(super) fn stribeck(
         &band_pipeline,
     );
     let data = (model, recordings);
-    let gains = Pass::new(data, motion_pipeline, (&settings, &needs), &motion, joints)?;
-    let band = Pass::new(data, &band_pipeline, (&settings, &needs), &motion, joints)?;
+    // The two passes are independent: one on each core.
+    let [gains, band]: [anyhow::Result<Pass>; 2] = map_in_order(
+        &[motion_pipeline, &band_pipeline],
+        |pipeline| Pass::new(data, pipeline, (&settings, &needs), &motion, joints),
+    )
+    .try_into()
+    .unwrap_or_else(|_| unreachable!("two pipelines give two passes"));
+    let (gains, band) = (gains?, band?);
     let (mut named_gains, mut named) = (gains.base(), band.base());
     let mut current = gains.mse(&named_gains);
     let mut band_current = band.mse(&named);
