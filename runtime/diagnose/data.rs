@@ -4,8 +4,8 @@ use nalgebra::{DVector, Vector3};
 
 use super::band::{self, Band, Needs, Stage};
 use super::candidate::{Candidate, Columns, Shape, candidates};
+use super::rows::{MOVING, Rows, Tilted, fill, fill_dry};
 use super::settings::Settings;
-use super::rows::{MOVING, Rows, Tilted, fill};
 use super::stacked::{Layout, Link, Stacked};
 use crate::dynamics::Dynamics;
 use crate::oracle::Model;
@@ -92,13 +92,16 @@ pub(super) fn links(model: &dyn Dynamics) -> Vec<Link> {
 /// decimated pipeline, see [`super::reversals`]; `reversal` says what it
 /// needs of the motion stage's choices: the ripple's harmonic is given, and
 /// a link's or the tilt's columns are built only for a named one).
+/// Also returns each recording's kept rows: given back as `motion` to the
+/// reversal stage's pass at the same pipeline, only its dry-friction
+/// signals are built again (every other one is the same numbers).
 pub(super) fn stack(
     model: &dyn Dynamics,
     recordings: &[Trajectory],
     pipeline: &Pipeline,
     settings: &Settings,
-    reversal: Option<&Needs>,
-) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout)> {
+    (reversal, motion): (Option<&Needs>, Option<&[Rows]>),
+) -> anyhow::Result<(Stacked, Vec<Candidate>, Layout, Vec<Rows>)> {
     let n = model.dof();
     let stage = match reversal {
         Some(_) => Stage::Reversals,
@@ -127,8 +130,20 @@ pub(super) fn stack(
             );
         }
         let settings = pipeline.for_recording(raw);
-        let (samples, dt) = match settings.filter {
-            Filter::Butterworth { cutoff_hz } => {
+        let butterworth = matches!(settings.filter, Filter::Butterworth { .. });
+        let reused = motion.and_then(|m| m.get(g)).filter(|_| butterworth);
+        let (samples, dt) = match (settings.filter.clone(), reversal, reused) {
+            (Filter::Butterworth { cutoff_hz }, Some(needs), Some(_)) => {
+                let dt = step(raw);
+                let band = band::velocity(raw, &settings, &moving, needs.band_hz)?;
+                for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
+                    *largest = largest.max(*r);
+                }
+                fill_dry(&mut rows, &band, &levers);
+                filter_rows(&mut rows, n, cutoff_hz, dt)?;
+                (Pipeline::kept_samples(&settings, raw.len(), dt), dt)
+            }
+            (Filter::Butterworth { cutoff_hz }, ..) => {
                 // Parallel filtering: the whole equation tau = Y theta passes
                 // the torque filter, so every column is compared exactly.
                 let traj = settings.states_at_full_rate(raw)?;
@@ -153,17 +168,7 @@ pub(super) fn stack(
                     (stage, bodies),
                     &levers,
                 )?;
-                // A column of zeros (a tilt or Stribeck velocity not built
-                // at this stage) stays zero through any linear filter.
-                let mut filtered: Vec<&mut [f64]> = rows
-                    .filtered_mut()
-                    .filter(|c| c.iter().any(|x| *x != 0.0))
-                    .map(|c| c.as_mut_slice())
-                    .collect();
-                let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
-                crate::parallel::for_parts_mut(&mut filtered, |part| {
-                    filter.apply_interleaved(part, n)
-                });
+                filter_rows(&mut rows, n, cutoff_hz, dt)?;
                 (Pipeline::kept_samples(&settings, traj.len(), dt), dt)
             }
             _ => {
@@ -195,7 +200,11 @@ pub(super) fn stack(
         }
         trimmed = samples.first().copied().unwrap_or(0);
         durations.push(samples.len() as f64 * dt * settings.downsample.max(1) as f64);
-        kept.push(rows.keep(n, &samples));
+        let this = rows.keep(n, &samples);
+        kept.push(match reused {
+            Some(motion) => motion.with_dry(this, (bodies, tilted.is_some())),
+            None => this,
+        });
     }
     let counts = match settings.segments {
         Some(k) => vec![k; kept.len()],
@@ -259,7 +268,24 @@ pub(super) fn stack(
         ripple_given: reversal.map(|r| r.ripple.clone()),
     };
     let candidates = candidates(&data, columns, &links(model));
-    Ok((data, candidates, layout))
+    Ok((data, candidates, layout, kept))
+}
+
+/// Every fitted signal of `rows` through the torque's zero-phase filter at
+/// `cutoff_hz` (parallel filtering: the whole equation tau = Y theta
+/// passes it, so every column is compared exactly), on both cores.
+fn filter_rows(rows: &mut Rows, dof: usize, cutoff_hz: f64, dt: f64) -> anyhow::Result<()> {
+    // A column of zeros (a tilt or Stribeck velocity not built at this
+    // stage, a signal `fill_dry` does not build) stays zero through any
+    // linear filter.
+    let mut filtered: Vec<&mut [f64]> = rows
+        .filtered_mut()
+        .filter(|c| c.iter().any(|x| *x != 0.0))
+        .map(|c| c.as_mut_slice())
+        .collect();
+    let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
+    crate::parallel::for_parts_mut(&mut filtered, |part| filter.apply_interleaved(part, dof));
+    Ok(())
 }
 
 /// Shortest and longest cross-validation segment, s.

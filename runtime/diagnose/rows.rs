@@ -115,7 +115,11 @@ impl Rows {
     /// inertial columns with `bodies`.
     /// Every column holds `capacity` rows without growing (a grown vector
     /// is copied, and its pages touched twice).
-    pub(super) fn with_columns(dof: usize, capacity: usize, (stage, bodies): (Stage, bool)) -> Rows {
+    pub(super) fn with_columns(
+        dof: usize,
+        capacity: usize,
+        (stage, bodies): (Stage, bool),
+    ) -> Rows {
         let (stribeck, generic) = match stage {
             Stage::Reversals => (stribeck_velocities().len(), 0),
             Stage::Motion => (0, GENERIC_FEATURES.len()),
@@ -139,7 +143,12 @@ impl Rows {
     }
 
     pub(super) fn keep(&self, dof: usize, samples: &[usize]) -> Rows {
+        // A signal not built (only the dry-friction ones, see `fill_dry`)
+        // stays empty.
         let pick = |v: &Vec<f64>| -> Vec<f64> {
+            if v.is_empty() {
+                return Vec::new();
+            }
             samples
                 .iter()
                 .flat_map(|&s| v[s * dof..(s + 1) * dof].iter().copied())
@@ -158,6 +167,39 @@ impl Rows {
             tilt: std::array::from_fn(|k| pick(&self.tilt[k])),
             measured_rate: pick(&self.measured_rate),
             stribeck: self.stribeck.iter().map(pick).collect(),
+        }
+    }
+
+    /// The motion stage's kept rows of a recording (`self`) with the
+    /// dry-friction signals of `dry` (kept from [`fill_dry`] at the same
+    /// pipeline and samples): what [`fill`] builds for the reversal stage's
+    /// pass at the motion band, every other signal being the same numbers.
+    /// A link's columns only with `bodies`; the tilt's zero without `tilt`.
+    pub(super) fn with_dry(&self, dry: Rows, (bodies, tilt): (bool, bool)) -> Rows {
+        let own = |k: usize| match k {
+            1 => dry.own[1].clone(),
+            _ => self.own[k].clone(),
+        };
+        Rows {
+            residual: self.residual.clone(),
+            measured: self.measured.clone(),
+            qd: dry.qd,
+            qdd: self.qdd.clone(),
+            gravity: self.gravity.clone(),
+            coulomb_applied: self.coulomb_applied.clone(),
+            own: std::array::from_fn(own),
+            inertial: if bodies {
+                self.inertial.clone()
+            } else {
+                Vec::new()
+            },
+            generic: Vec::new(),
+            tilt: std::array::from_fn(|k| match tilt {
+                true => self.tilt[k].clone(),
+                false => vec![0.0; self.tilt[k].len()],
+            }),
+            measured_rate: self.measured_rate.clone(),
+            stribeck: dry.stribeck,
         }
     }
 }
@@ -233,19 +275,49 @@ pub(super) fn fill(
                 column.push(tilt.as_ref().map_or(0.0, |t| t[k][i]));
             }
             rows.measured_rate.push(measured_rate[(s, i)]);
-            for (fitted, v) in rows.stribeck.iter_mut().zip(&velocities) {
-                // Velocities below the least at-rest speed's resolved
-                // multiple are never searched: a zero column, not filtered.
-                let shape = if *v < RESOLVED_REST_MULTIPLE * MOVING {
-                    0.0
-                } else {
-                    sign * (-(resolved / (v * levers[i])).powi(2)).exp()
-                };
-                fitted.push(shape);
-            }
+            push_stribeck(&mut rows.stribeck, &velocities, (sign, resolved), levers[i]);
         }
     }
     Ok(())
+}
+
+/// Fills `rows` (cleared first) with the dry-friction signals alone, as
+/// [`fill`] builds them at the reversal stage: the velocity that resolves
+/// reversals, Coulomb's moving sign and the Stribeck columns (the others
+/// stay empty; see [`Rows::with_dry`]).
+pub(super) fn fill_dry(rows: &mut Rows, band: &Band, levers: &[f64]) {
+    rows.clear();
+    let velocities = stribeck_velocities();
+    let n = band.rest.len();
+    for s in 0..band.qd.nrows() {
+        for i in 0..n {
+            let resolved = band.qd[(s, i)];
+            rows.qd.push(resolved);
+            let sign = moving_sign(resolved, band.rest[i]);
+            rows.own[1].push(sign);
+            push_stribeck(&mut rows.stribeck, &velocities, (sign, resolved), levers[i]);
+        }
+    }
+}
+
+/// One row of the Stribeck columns, one per velocity of the grid, for a
+/// joint moving with `sign` at the `resolved` velocity.
+fn push_stribeck(
+    columns: &mut [Vec<f64>],
+    velocities: &[f64],
+    (sign, resolved): (f64, f64),
+    lever: f64,
+) {
+    for (fitted, v) in columns.iter_mut().zip(velocities) {
+        // Velocities below the least at-rest speed's resolved multiple are
+        // never searched: a zero column, not filtered.
+        let shape = if *v < RESOLVED_REST_MULTIPLE * MOVING {
+            0.0
+        } else {
+            sign * (-(resolved / (v * lever)).powi(2)).exp()
+        };
+        fitted.push(shape);
+    }
 }
 
 fn generic_features(q: f64, qd: f64, sign: f64, qdd: f64, load: f64, rate: f64) -> [f64; 12] {

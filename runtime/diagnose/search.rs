@@ -178,10 +178,8 @@ pub(super) fn ripple_cycles(
         return None;
     }
     // The shapes on the joint's rows only: the other joints' are not fitted.
-    let angle = DVector::from_iterator(
-        nuisance.rows.len(),
-        nuisance.rows.iter().map(|&r| angle[r]),
-    );
+    let angle =
+        DVector::from_iterator(nuisance.rows.len(), nuisance.rows.iter().map(|&r| angle[r]));
     let best = (first..=MOST_CYCLES)
         .map(|h| {
             let h = h as f64;

@@ -250,7 +250,11 @@ mod tests {
         };
         // 11 columns of 3 series: 33 lanes, the last batch partly empty.
         let mut columns: Vec<Vec<f64>> = (0..11)
-            .map(|c| (0..2500 * width).map(|k| series(c, k % width)[k / width]).collect())
+            .map(|c| {
+                (0..2500 * width)
+                    .map(|k| series(c, k % width)[k / width])
+                    .collect()
+            })
             .collect();
         let mut views: Vec<&mut [f64]> = columns.iter_mut().map(|c| c.as_mut_slice()).collect();
         filter.apply_interleaved(&mut views, width);
@@ -258,7 +262,12 @@ mod tests {
             for j in 0..width {
                 let alone = filter.apply(&series(c, j));
                 let together: Vec<f64> = column.iter().skip(j).step_by(width).copied().collect();
-                assert!(alone.iter().zip(&together).all(|(a, b)| a.to_bits() == b.to_bits()));
+                assert!(
+                    alone
+                        .iter()
+                        .zip(&together)
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                );
             }
         }
     }
