@@ -53,13 +53,14 @@ impl Biquad {
 /// latencies and use its vector units. Each lane's arithmetic is the
 /// single series' exactly (same operations in the same order), so the
 /// results are bit-identical to [`ZeroPhaseLowPass::apply`].
-const LANES: usize = 8;
+const LANES: usize = 16;
 
 type Lanes = [f64; LANES];
 
 impl Biquad {
     /// [`Biquad::run`] on every lane of `x`, visited in the iterator's
     /// order (backwards for the second pass).
+    #[inline(always)]
     fn run_lanes<'a>(&self, mut x: impl Iterator<Item = &'a mut Lanes>) {
         let Some(head) = x.next() else { return };
         let [b0, b1, b2] = self.b;
@@ -167,17 +168,41 @@ impl ZeroPhaseLowPass {
                 buffer[pad + n - 1 + i] =
                     std::array::from_fn(|l| 2.0 * x(l, n - 1) - x(l, n - 1 - i));
             }
-            for section in &self.sections {
-                section.run_lanes(buffer.iter_mut());
-            }
-            for section in &self.sections {
-                section.run_lanes(buffer.iter_mut().rev());
-            }
+            self.run_both_passes(&mut buffer);
             for (s, v) in buffer[pad..pad + n].iter().enumerate() {
                 for (l, &(c, j)) in batch.iter().enumerate() {
                     columns[c][s * width + j] = v[l];
                 }
             }
+        }
+    }
+
+    /// Both passes of every section over the lanes of `buffer`, with the
+    /// processor's 256-bit vectors where it has them: the same IEEE
+    /// operations in the same order either way (no fused multiply-add),
+    /// so the same bits, at about twice the throughput.
+    fn run_both_passes(&self, buffer: &mut [Lanes]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { self.run_both_passes_avx2(buffer) };
+        }
+        self.run_both_passes_portable(buffer)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_both_passes_avx2(&self, buffer: &mut [Lanes]) {
+        self.run_both_passes_portable(buffer)
+    }
+
+    #[inline(always)]
+    fn run_both_passes_portable(&self, buffer: &mut [Lanes]) {
+        for section in &self.sections {
+            section.run_lanes(buffer.iter_mut());
+        }
+        for section in &self.sections {
+            section.run_lanes(buffer.iter_mut().rev());
         }
     }
 
