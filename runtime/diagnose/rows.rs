@@ -66,12 +66,37 @@ impl Rows {
         .chain(self.stribeck.iter_mut())
     }
 
-    /// Every column emptied, its memory kept.
+    /// Every signal, filtered or not.
+    fn signals_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
+        [
+            &mut self.qd,
+            &mut self.qdd,
+            &mut self.gravity,
+            &mut self.residual,
+            &mut self.measured,
+            &mut self.coulomb_applied,
+        ]
+        .into_iter()
+        .chain(self.own.iter_mut())
+        .chain(self.inertial.iter_mut())
+        .chain(self.generic.iter_mut())
+        .chain(self.tilt.iter_mut())
+        .chain([&mut self.measured_rate])
+        .chain(self.stribeck.iter_mut())
+    }
+
+    /// Every signal emptied, its memory kept.
     pub(super) fn clear(&mut self) {
-        for column in [&mut self.qd, &mut self.qdd, &mut self.gravity] {
-            column.clear();
+        self.signals_mut().for_each(Vec::clear);
+    }
+
+    /// Appends the rows of `tile` (built with the same columns), which is
+    /// emptied.
+    fn append(&mut self, tile: &mut Rows) {
+        for (to, from) in self.signals_mut().zip(tile.signals_mut()) {
+            to.extend_from_slice(from);
+            from.clear();
         }
-        self.filtered_mut().for_each(Vec::clear);
     }
 
     /// The first row where any signal is not finite.
@@ -239,7 +264,15 @@ pub(super) fn fill(
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    // Rows are built a few samples at a time in a tile that stays in the
+    // cache, then appended column by column: written sample by sample, the
+    // fifty-odd long columns took most of this function's time.
+    let mut tile = Rows::with_columns(n, TILE_SAMPLES * n, (stage, bodies));
     for s in 0..traj.len() {
+        if s % TILE_SAMPLES == 0 {
+            rows.append(&mut tile);
+        }
+        let rows = &mut tile;
         for i in 0..n {
             (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
         }
@@ -278,8 +311,12 @@ pub(super) fn fill(
             push_stribeck(&mut rows.stribeck, &velocities, (sign, resolved), levers[i]);
         }
     }
+    rows.append(&mut tile);
     Ok(())
 }
+
+/// Samples per tile of [`fill`].
+const TILE_SAMPLES: usize = 16;
 
 /// Fills `rows` (cleared first) with the dry-friction signals alone, as
 /// [`fill`] builds them at the reversal stage: the velocity that resolves
