@@ -57,7 +57,11 @@ impl Moments {
             // rank-one updates (x_b x_a + sum, and y x_b + sum, as
             // nalgebra's `ger` and `axpy` add them).
             nonzero.clear();
-            nonzero.extend((0..p).map(|k| (k, columns[k][r])).filter(|&(_, v)| v != 0.0));
+            nonzero.extend(
+                (0..p)
+                    .map(|k| (k, columns[k][r]))
+                    .filter(|&(_, v)| v != 0.0),
+            );
             let (xx, xr) = (xx[g][j].as_mut_slice(), xr[g][j].as_mut_slice());
             for &(b, vb) in &nonzero {
                 let column = &mut xx[b * p..(b + 1) * p];
