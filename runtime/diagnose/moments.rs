@@ -66,9 +66,9 @@ impl Moments {
             for &(b, vb) in &nonzero {
                 let column = &mut xx[b * p..(b + 1) * p];
                 for &(a, va) in &nonzero {
-                    column[a] = vb * va + column[a];
+                    column[a] += vb * va;
                 }
-                xr[b] = y * vb + xr[b];
+                xr[b] += y * vb;
             }
             rr[g][j] += y * y;
             rows[g][j] += 1;

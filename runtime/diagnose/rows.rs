@@ -325,14 +325,13 @@ const TILE_SAMPLES: usize = 16;
 pub(super) fn fill_dry(rows: &mut Rows, band: &Band, levers: &[f64]) {
     rows.clear();
     let velocities = stribeck_velocities();
-    let n = band.rest.len();
     for s in 0..band.qd.nrows() {
-        for i in 0..n {
+        for (i, (&rest, &lever)) in band.rest.iter().zip(levers).enumerate() {
             let resolved = band.qd[(s, i)];
             rows.qd.push(resolved);
-            let sign = moving_sign(resolved, band.rest[i]);
+            let sign = moving_sign(resolved, rest);
             rows.own[1].push(sign);
-            push_stribeck(&mut rows.stribeck, &velocities, (sign, resolved), levers[i]);
+            push_stribeck(&mut rows.stribeck, &velocities, (sign, resolved), lever);
         }
     }
 }
