@@ -99,6 +99,7 @@ mod moments;
 pub mod plots;
 mod report;
 mod reversals;
+mod rows;
 mod sanity;
 mod search;
 mod select;
@@ -297,7 +298,8 @@ pub fn diagnose(
     if settings.sanity_gate {
         sanity::refuse(model, &misplaced)?;
     }
-    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings, None)?;
+    let (data, mut candidates, layout, kept) =
+        stack(model, recordings, pipeline, &settings, (None, None))?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(
@@ -349,6 +351,7 @@ pub fn diagnose(
     let motion = reversals::Motion {
         candidates: &candidates,
         selected: &selected,
+        rows: &kept,
     };
     let stribeck = stribeck::at_reversals(model, recordings, pipeline, settings, motion)?;
     let alternatives: Vec<_> = selection
