@@ -302,6 +302,35 @@ fn coverage_study() {
         all.extend(outcomes);
     }
     summary(&all);
+    for kind in [Kind::CoulombFriction, Kind::ViscousFriction] {
+        bias(&all, kind);
+    }
+}
+
+/// The named values' error relative to the truth for one kind: how many
+/// lie above it, the mean and the median (a bias of the estimator shows as
+/// most above or most below).
+fn bias(outcomes: &[(Truth, Outcome)], kind: Kind) {
+    let mut errors: Vec<f64> = outcomes
+        .iter()
+        .filter(|(t, _)| t.kind == kind)
+        .filter_map(|(_, o)| match o {
+            // The centre's distance from the truth in half-widths times
+            // the half-width over |truth|.
+            Outcome::Covered(w, d) | Outcome::Missed(w, d) => Some(w * d),
+            _ => None,
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let above = errors.iter().filter(|e| **e > 0.0).count();
+    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+    let median = errors.get(errors.len() / 2).copied().unwrap_or(f64::NAN);
+    println!(
+        "{kind:?}: {above} of {} above the truth, relative error mean {:+.1}%, median {:+.1}%",
+        errors.len(),
+        100.0 * mean,
+        100.0 * median
+    );
 }
 
 /// The default virtual robot (three recordings of `sdnn simulate --count

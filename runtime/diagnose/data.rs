@@ -91,8 +91,9 @@ struct Rows {
     qdd: Vec<f64>,
     gravity: Vec<f64>,
     coulomb_applied: Vec<f64>,
-    /// Fitted own-joint columns: qd, moving sign, qdd, 1, q.
-    own: [Vec<f64>; 5],
+    /// Fitted own-joint columns: qd, moving sign, qdd, 1, q, and the
+    /// Coulomb column's ramp at rest (`super::dry::rest_ramp`).
+    own: [Vec<f64>; 6],
     /// The regressor's inertial columns.
     inertial: Vec<Vec<f64>>,
     /// Own-joint features of the unexplained-structure check
@@ -418,6 +419,12 @@ fn rows(
     };
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
+    let ramps: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            let qd: Vec<f64> = band.qd.column(i).iter().copied().collect();
+            super::dry::rest_ramp(&qd, band.rest[i])
+        })
+        .collect();
     for s in 0..traj.len() {
         let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
         let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));
@@ -439,7 +446,11 @@ fn rows(
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
             let sign = moving_sign(resolved, band.rest[i]);
-            for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i]].into_iter().enumerate() {
+            let ramp = ramps[i][s];
+            for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i], ramp]
+                .into_iter()
+                .enumerate()
+            {
                 rows.own[k].push(v);
             }
             for (k, column) in rows.inertial.iter_mut().enumerate() {

@@ -88,6 +88,7 @@ mod candidate;
 pub mod data;
 mod diagnosis;
 mod digits;
+mod dry;
 mod fit;
 mod gain;
 mod heldout;
