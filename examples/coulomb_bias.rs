@@ -65,7 +65,7 @@ fn main() {
         let mut truth = Model::from_description(&description);
         let mut levels = Vec::new();
         for body in truth.bodies.iter_mut() {
-            body.effects.viscous = rng.random_range(0.05..0.6);
+            body.effects.viscous = env("VISCOUS", 1.0) * rng.random_range(0.05..0.6);
             body.effects.coulomb = rng.random_range(0.05..0.7);
             let a = rng.random_range(0.005..0.05);
             if rng.random_bool(0.5) {
@@ -128,9 +128,13 @@ fn main() {
                 v.map(|x| (x * 1000.0).round() / 1000.0),
                 e.armature
             );
-            if let (Some(c), Some(v)) = (c, v) {
+            if let (Some(c), Some(v)) = (c, v.or(Some(0.0))) {
                 dc += c / e.coulomb - 1.0;
-                dv += v / e.viscous - 1.0;
+                dv += if e.viscous > 0.0 {
+                    v / e.viscous - 1.0
+                } else {
+                    0.0
+                };
                 above += usize::from(c > e.coulomb);
                 n += 1;
             }

@@ -419,10 +419,17 @@ fn rows(
     };
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
+    // The reversal stage fits on the moving rows only and judges a
+    // breakaway, which lives next to rest: there the Coulomb column stays
+    // the moving sign (a zero ramp), or its share at rest would take the
+    // breakaway's place.
     let ramps: Vec<Vec<f64>> = (0..n)
-        .map(|i| {
-            let qd: Vec<f64> = band.qd.column(i).iter().copied().collect();
-            super::dry::rest_ramp(&qd, band.rest[i])
+        .map(|i| match stage {
+            Stage::Motion => {
+                let qd: Vec<f64> = band.qd.column(i).iter().copied().collect();
+                super::dry::rest_ramp(&qd, band.rest[i])
+            }
+            Stage::Reversals => vec![0.0; traj.len()],
         })
         .collect();
     for s in 0..traj.len() {
