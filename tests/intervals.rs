@@ -341,7 +341,7 @@ fn friction_levels_are_not_biased() {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
-    let [coulomb, viscous] = errors.each_mut().map(|v| median(v));
+    let [coulomb, viscous] = errors.each_mut().map(median);
     assert!(
         coulomb.abs() < 0.025,
         "Coulomb median error {coulomb}: {errors:?}"

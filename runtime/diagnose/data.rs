@@ -423,15 +423,10 @@ fn rows(
     // breakaway, which lives next to rest: there the Coulomb column stays
     // the moving sign (a zero ramp), or its share at rest would take the
     // breakaway's place.
-    let ramps: Vec<Vec<f64>> = (0..n)
-        .map(|i| match stage {
-            Stage::Motion => {
-                let qd: Vec<f64> = band.qd.column(i).iter().copied().collect();
-                super::dry::rest_ramp(&qd, band.rest[i])
-            }
-            Stage::Reversals => vec![0.0; traj.len()],
-        })
-        .collect();
+    let ramps = match stage {
+        Stage::Motion => super::dry::rest_ramps(&band.qd, &band.rest),
+        Stage::Reversals => vec![vec![0.0; traj.len()]; n],
+    };
     for s in 0..traj.len() {
         let row = |m: &DMatrix<f64>| m.row(s).iter().copied().collect::<Vec<f64>>();
         let (q, qd, qdd) = (row(traj.q()), row(traj.qd()), row(accel));

@@ -12,9 +12,18 @@
 //! relaxes its friction well below the level). So the column at rest is the
 //! ramp times a share the data choose ([`rest_share`]), not a guess.
 
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 
 use super::search::Nuisance;
+
+/// [`rest_ramp`] of each joint's velocity (a column of `qd`, samples x
+/// joints) with its at-rest speed.
+pub(super) fn rest_ramps(qd: &DMatrix<f64>, rest: &[f64]) -> Vec<Vec<f64>> {
+    qd.column_iter()
+        .zip(rest)
+        .map(|(v, &r)| rest_ramp(&v.iter().copied().collect::<Vec<f64>>(), r))
+        .collect()
+}
 
 /// Zero where the joint moves (faster than `rest`); across each stretch at
 /// rest a linear ramp in time from the sign of the motion before it to the
