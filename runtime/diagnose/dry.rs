@@ -2,15 +2,17 @@
 //!
 //! A joint slower than its at-rest speed holds static friction: anywhere
 //! between the levels, set by whatever else acts on it. Fitting it as zero
-//! there (the moving sign alone) biased the fitted levels high by 3-10%:
-//! the parallel filter spreads each stretch at rest into the neighbouring
+//! there (the moving sign alone) biased the fitted levels high (median +5%
+//! in the coverage study, the viscous coefficients low to match): the
+//! parallel filter spreads each stretch at rest into the neighbouring
 //! moving samples, and static friction stays near the level the joint
 //! stopped with until it breaks away at the level of its next motion, so
 //! the zero the column claims is wrong in a way correlated with the column
 //! itself. Filling the stretch with a ramp from the sign before to the sign
-//! after biased them low by about as much (a joint that holds a waypoint
-//! relaxes its friction well below the level). So the column at rest is the
-//! ramp times a share the data choose ([`rest_share`]), not a guess.
+//! after biased them low instead (-6% where zero gave +3%: a joint that
+//! holds a waypoint relaxes its friction below the level). So the column
+//! at rest is the ramp times a share the data choose ([`rest_share`]), not
+//! a guess (docs/diagnosis.md, "The Coulomb column at rest").
 
 use nalgebra::{DMatrix, DVector};
 
