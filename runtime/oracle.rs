@@ -187,6 +187,29 @@ pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
     g
 }
 
+/// [`gravity`] of `model` with its gravity vector replaced by each of
+/// `directions` in turn (the same numbers as `gravity` of each such
+/// model, but for the sign of an exact zero), the bodies' frames computed
+/// once for all of them.
+pub fn gravity_along<const K: usize>(
+    model: &Model,
+    q: &[f64],
+    directions: &[Vector3<f64>; K],
+) -> [DVector<f64>; K] {
+    let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
+    let zero = vec![0.0; model.dof()];
+    let frames = frames(model, q, &zero, &zero);
+    directions.map(|direction| {
+        let mut g = torque_at_rest(model, &params, direction, &frames);
+        for body in &model.bodies {
+            let (d, m, _) = body.driver;
+            let (q, _, _) = body.state(q, &zero, &zero);
+            g[d] += m * position_torque(&body.effects, q);
+        }
+        g
+    })
+}
+
 /// Coriolis and centrifugal vector c(q, qd), without gravity or effects.
 pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
     let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
@@ -254,8 +277,28 @@ fn rigid_body_torque(
     qd: &[f64],
     qdd: &[f64],
 ) -> DVector<f64> {
+    let frames = frames(model, q, qd, qdd);
+    torque_in_frames(model, params, gravity, &frames, (q, qd, qdd))
+}
+
+/// Every body's frame in its parent's at the state (rotation, origin).
+fn frames(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
+    model
+        .bodies
+        .iter()
+        .map(|body| body.placement(body.state(q, qd, qdd).0))
+        .collect()
+}
+
+/// [`rigid_body_torque`] with the bodies' `frames` given.
+fn torque_in_frames(
+    model: &Model,
+    params: &[[f64; INERTIAL_PARAMETERS]],
+    gravity: Vector3<f64>,
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    (q, qd, qdd): (&[f64], &[f64], &[f64]),
+) -> DVector<f64> {
     let n = model.bodies.len();
-    let mut rotations = Vec::with_capacity(n);
     let mut forces = Vec::with_capacity(n);
     let mut moments = Vec::with_capacity(n);
     // Base: at rest, accelerating upwards to emulate gravity.
@@ -264,8 +307,8 @@ fn rigid_body_torque(
     for (i, body) in model.bodies.iter().enumerate() {
         let (mut w, mut wd, mut vd) = body.parent.map_or(base, |p| motions[p]);
         let a = body.axis.into_inner();
-        let (q, qd, qdd) = body.state(q, qd, qdd);
-        let (r, p) = body.placement(q);
+        let (_, qd, qdd) = body.state(q, qd, qdd);
+        let (r, p) = frames[i];
         let rt = r.transpose();
         vd = rt * (vd + wd.cross(&p) + w.cross(&w.cross(&p)));
         let w_parent = rt * w;
@@ -280,14 +323,50 @@ fn rigid_body_torque(
         let (m, h, inertia) = unpack(&params[i]);
         forces.push(m * vd + wd.cross(&h) + w.cross(&w.cross(&h)));
         moments.push(inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd));
-        rotations.push((r, p));
         motions.push((w, wd, vd));
     }
+    joint_torques(model, frames, forces, moments)
+}
+
+/// [`torque_in_frames`] at rest (zero velocities and accelerations), where
+/// every term of the bodies' rates of turn is an exact zero: without them,
+/// the same numbers but for the sign of a result that is exactly zero.
+fn torque_at_rest(
+    model: &Model,
+    params: &[[f64; INERTIAL_PARAMETERS]],
+    gravity: Vector3<f64>,
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+) -> DVector<f64> {
+    let n = model.bodies.len();
+    let mut forces = Vec::with_capacity(n);
+    let mut moments = Vec::with_capacity(n);
+    // Base: accelerating upwards to emulate gravity.
+    let mut accelerations: Vec<Vector3<f64>> = Vec::with_capacity(n);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let vd = body.parent.map_or(-gravity, |p| accelerations[p]);
+        let vd = frames[i].0.transpose() * vd;
+        let (m, h, _) = unpack(&params[i]);
+        forces.push(m * vd);
+        moments.push(h.cross(&vd));
+        accelerations.push(vd);
+    }
+    joint_torques(model, frames, forces, moments)
+}
+
+/// The backward pass of the RNEA: each body's force and moment about its
+/// origin (in its frame) gathered towards the base, projected on its axis.
+fn joint_torques(
+    model: &Model,
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    mut forces: Vec<Vector3<f64>>,
+    mut moments: Vec<Vector3<f64>>,
+) -> DVector<f64> {
+    let n = model.bodies.len();
     let mut tau = DVector::zeros(model.dof());
     for i in (0..n).rev() {
         let body = &model.bodies[i];
         if let Some(parent) = body.parent {
-            let (r, p) = rotations[i];
+            let (r, p) = frames[i];
             let force = r * forces[i];
             let moment = r * moments[i] + p.cross(&force);
             forces[parent] += force;
@@ -419,6 +498,31 @@ mod tests {
         let y = regressor(&model, &q, &qd, &qdd);
         let tau = rnea(&model, &q, &qd, &qdd);
         assert!((y * model.parameters() - tau).norm() < 1e-12);
+    }
+
+    #[test]
+    fn gravity_along_directions_is_gravity_of_each_model() {
+        let source = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/panda.toml"),
+        )
+        .unwrap();
+        let d = Description::parse(&source, "panda", std::path::Path::new("panda.toml")).unwrap();
+        let model = Model::from_description(&d);
+        let directions = [Vector3::x(), -Vector3::y(), Vector3::new(0.3, -0.2, -0.93)];
+        for k in 0..50 {
+            let q: Vec<f64> = (0..model.dof())
+                .map(|j| ((k * 7 + j * 3) as f64 * 0.37).sin() * 2.5)
+                .collect();
+            let along = gravity_along(&model, &q, &directions);
+            for (g, &direction) in along.iter().zip(&directions) {
+                let alone = Model {
+                    gravity: direction,
+                    ..model.clone()
+                };
+                // Equal as numbers (an exact zero may differ in sign).
+                assert_eq!(g, &gravity(&alone, &q), "q = {q:?}");
+            }
+        }
     }
 
     #[test]

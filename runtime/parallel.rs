@@ -34,6 +34,25 @@ pub fn map_in_order_on<T: Sync, R: Send>(
     })
 }
 
+/// `f` on contiguous parts of `items`, one part per thread (up to
+/// `available_parallelism`), for work that changes each item on its own:
+/// the result does not depend on how the items are split.
+pub fn for_parts_mut<T: Send>(items: &mut [T], f: impl Fn(&mut [T]) + Sync) {
+    let workers = std::thread::available_parallelism().map_or(1, |p| p.get());
+    let workers = workers.min(items.len());
+    if workers <= 1 {
+        return f(items);
+    }
+    let chunk = items.len().div_ceil(workers);
+    let f = &f;
+    // A worker's panic is passed on when the scope ends.
+    std::thread::scope(|scope| {
+        for part in items.chunks_mut(chunk) {
+            scope.spawn(move || f(part));
+        }
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -44,6 +63,13 @@ mod tests {
         let squares = map_in_order(&items, |x| x * x);
         assert_eq!(squares, items.iter().map(|x| x * x).collect::<Vec<_>>());
         assert!(map_in_order(&[] as &[u64], |x| *x).is_empty());
+    }
+
+    #[test]
+    fn every_part_is_changed_once() {
+        let mut items: Vec<u64> = (0..101).collect();
+        for_parts_mut(&mut items, |part| part.iter_mut().for_each(|x| *x *= 3));
+        assert_eq!(items, (0..101).map(|x| 3 * x).collect::<Vec<u64>>());
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Integration tests of the product, one binary (see `util` for helpers).
 
+mod admission;
 mod bags;
 mod beyond_tau;
 mod cli;

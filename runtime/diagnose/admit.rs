@@ -201,6 +201,49 @@ pub(super) fn admits(
         .is_some_and(|v| physical(&candidates[last], &v, Gain::NONE, settings.reach).is_ok())
 }
 
+/// Whether the direction-dependent dry friction fitted with `trial` keeps
+/// both directions' levels non-negative: |asymmetry| within the joint's
+/// Coulomb level, modelled plus named. Beyond it friction would push the
+/// motion one way, which no friction does (and a description refuses).
+pub(super) fn levels_hold(
+    candidates: &[Candidate],
+    trial: &[usize],
+    theta: &[f64],
+) -> Result<(), String> {
+    let mut at = 0;
+    let mut coulomb = Vec::new();
+    let mut asymmetries = Vec::new();
+    for &c in trial {
+        let candidate = &candidates[c];
+        match (candidate.kind, candidate.shape.clone(), candidate.joint) {
+            (Kind::CoulombFriction, _, Some(j)) => coulomb.push((j, theta[at])),
+            (Kind::CoulombAsymmetry, Shape::Asymmetry { modelled_coulomb }, Some(j)) => {
+                asymmetries.push((j, theta[at], modelled_coulomb))
+            }
+            _ => {}
+        }
+        at += width(candidate);
+    }
+    for (j, asymmetry, modelled) in asymmetries {
+        let named: f64 = coulomb
+            .iter()
+            .filter(|(k, _)| *k == j)
+            .map(|(_, v)| v)
+            .sum();
+        let level = modelled + named;
+        if asymmetry.abs() > level {
+            return Err(format!(
+                "joint {}: the data fit direction-dependent dry friction of {asymmetry:.4} N m \
+                 beside a Coulomb level of {level:.4} N m: one direction's friction would push \
+                 the motion; not named (a torque offset, or friction the model lacks, shows \
+                 this way)",
+                j + 1
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Largest torque-scale error (either way), delay (s) and base tilt (rad)
 /// taken as that effect: beyond them the fit is the trace of something else
 /// (and a delay beyond it is outside the first-order model of its column).
@@ -361,6 +404,33 @@ mod tests {
 
     fn gain(share: f64) -> Gain {
         Gain { share, joint: 0 }
+    }
+
+    /// The Panda log's first 15 s fitted an asymmetry of -0.250 N m on
+    /// joint 2 beside a named Coulomb level of 0.227: one direction's
+    /// friction would be negative (and `--apply` failed on it). Within
+    /// the named plus modelled level it holds.
+    #[test]
+    fn an_asymmetry_beyond_the_coulomb_level_is_refused() {
+        let one_column = |kind, shape| Candidate {
+            columns: vec![DVector::zeros(1)],
+            shape,
+            ..candidate(kind, Some(1))
+        };
+        let coulomb = one_column(Kind::CoulombFriction, Shape::Linear);
+        let asymmetry = |modelled_coulomb| {
+            one_column(
+                Kind::CoulombAsymmetry,
+                Shape::Asymmetry { modelled_coulomb },
+            )
+        };
+        let named = [coulomb, asymmetry(0.0)];
+        let beyond = levels_hold(&named, &[0, 1], &[0.227, -0.250]).unwrap_err();
+        assert!(beyond.contains("joint 2"), "{beyond}");
+        assert!(levels_hold(&named, &[0, 1], &[0.227, -0.200]).is_ok());
+        let modelled = [asymmetry(0.1)];
+        assert!(levels_hold(&modelled, &[0], &[0.09]).is_ok());
+        assert!(levels_hold(&modelled, &[0], &[0.11]).is_err());
     }
 
     /// The issue's forearm: a first moment that puts the COM 0.64 m out on

@@ -64,7 +64,7 @@ pub(super) fn runners_up(
             let mut both = before.to_vec();
             both.extend([named, *r]);
             let mse = cv_mse(m, dof, candidates, &both, Scoring::Fitted);
-            relative_gain(after, &mse, initial).share < settings.min_gain
+            relative_gain(after, &mse, after).share < settings.min_gain
         })
         .map(|(r, _, mse)| Alternative {
             named,

@@ -1,18 +1,21 @@
 //! How much held-out error a candidate removes, the measure forward
 //! selection and the near-tie rules compare.
 
-/// Largest relative drop of any joint's MSE from `before` to `after`.
-pub(super) fn relative_gain(before: &[f64], after: &[f64], initial: &[f64]) -> Gain {
+/// Largest relative drop of any joint's MSE from `before` to `after`, a
+/// drop counting only when it reaches [`GAIN_FLOOR`] of the joint's
+/// `reference` MSE: the residual at the step for the selection (a large
+/// effect named first does not raise the bar for a small one beside it,
+/// issue 25), the error before the diagnosis for the reversal stage.
+pub(super) fn relative_gain(before: &[f64], after: &[f64], reference: &[f64]) -> Gain {
     before
         .iter()
         .zip(after)
-        .zip(initial)
+        .zip(reference)
         .enumerate()
-        .map(|(joint, ((b, a), i))| {
-            // A drop below GAIN_FLOOR of the joint's error before the
-            // diagnosis is noise-level structure, however large a share of
-            // what is left it is.
-            let share = if *b > 0.0 && b - a >= GAIN_FLOOR * i {
+        .map(|(joint, ((b, a), r))| {
+            // A drop below the floor is noise-level structure, however
+            // large a share of what is left it is.
+            let share = if *b > 0.0 && b - a >= GAIN_FLOOR * r {
                 (b - a) / b
             } else {
                 0.0
@@ -31,7 +34,7 @@ pub(super) fn relative_gain(before: &[f64], after: &[f64], initial: &[f64]) -> G
 }
 
 /// The least held-out MSE an effect must remove from a joint, as a share of
-/// that joint's held-out MSE before the diagnosis.
+/// that joint's reference MSE (see [`relative_gain`]).
 pub const GAIN_FLOOR: f64 = 1e-3;
 
 /// A candidate's held-out gain: the largest share of a joint's current

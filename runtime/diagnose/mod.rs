@@ -92,6 +92,7 @@ mod digits;
 mod dry;
 mod fit;
 mod gain;
+mod held;
 mod heldout;
 mod identify;
 mod kind;
@@ -100,6 +101,7 @@ mod moments;
 pub mod plots;
 mod report;
 mod reversals;
+mod rows;
 mod sanity;
 mod search;
 mod select;
@@ -298,7 +300,8 @@ pub fn diagnose(
     if settings.sanity_gate {
         sanity::refuse(model, &misplaced)?;
     }
-    let (data, mut candidates, layout) = stack(model, recordings, pipeline, &settings, None)?;
+    let (data, mut candidates, layout, kept) =
+        stack(model, recordings, pipeline, &settings, (None, None))?;
     let seconds = layout.segments as f64 * layout.segment_seconds;
     if layout.segments < 2 || seconds < MIN_SECONDS {
         anyhow::bail!(
@@ -334,9 +337,23 @@ pub fn diagnose(
     }
     let (mut selected, mut notes) = (selection.selected, selection.notes);
     drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
+    let bias = |selected: &[usize], supported: &[supported::Supported]| {
+        let width = selected
+            .iter()
+            .map(|&c| candidate::width(&candidates[c]))
+            .sum();
+        let timing = supported::timing_shift(&moments, &candidates, selected);
+        supported::bias(supported, timing, width)
+    };
+    held::drop_unheld(&moments, &candidates, &mut selected, &mut notes, |s| {
+        let found = supported::supported(&moments, data.dof, &candidates, s, settings);
+        let timing = supported::timing_shift(&moments, &candidates, s);
+        held::bias_elsewhere(&candidates, s, &found, timing)
+    });
     let motion = reversals::Motion {
         candidates: &candidates,
         selected: &selected,
+        rows: &kept,
     };
     let stribeck = stribeck::at_reversals(model, recordings, pipeline, settings, motion)?;
     let alternatives: Vec<_> = selection
@@ -354,20 +371,12 @@ pub fn diagnose(
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
     let supported = supported::supported(&moments, data.dof, &candidates, &selected, settings);
-    let width: usize = selected
-        .iter()
-        .map(|&c| candidate::width(&candidates[c]))
-        .sum();
     let mut effects = describe(
         &moments,
         &candidates,
         &selected,
         settings.com_resolution * size,
-        &supported::bias(
-            &supported,
-            supported::timing_shift(&moments, &candidates, &selected),
-            width,
-        ),
+        &bias(&selected, &supported),
         &mut notes,
     );
     for (effect, &c) in effects.iter_mut().zip(&selected) {

@@ -47,11 +47,29 @@ impl Moments {
         let mut xr = vec![vec![DVector::zeros(p); data.dof]; groups];
         let mut rr = vec![vec![0.0; data.dof]; groups];
         let mut rows = vec![vec![0; data.dof]; groups];
+        let mut nonzero: Vec<(usize, f64)> = Vec::with_capacity(p);
         for (r, (&g, &y)) in data.group.iter().zip(data.residual.iter()).enumerate() {
             let j = r % data.dof;
-            let x = DVector::from_fn(p, |k, _| columns[k][r]);
-            xx[g][j].ger(1.0, &x, &x, 1.0);
-            xr[g][j].axpy(y, &x, 1.0);
+            // Most columns are zero on a row (a joint's own columns on the
+            // other joints' rows): only the nonzero products are added.
+            // The sums start at +0 and never become -0, so a zero product
+            // would change none of them: the same numbers as X^T X by
+            // rank-one updates (x_b x_a + sum, and y x_b + sum, as
+            // nalgebra's `ger` and `axpy` add them).
+            nonzero.clear();
+            nonzero.extend(
+                (0..p)
+                    .map(|k| (k, columns[k][r]))
+                    .filter(|&(_, v)| v != 0.0),
+            );
+            let (xx, xr) = (xx[g][j].as_mut_slice(), xr[g][j].as_mut_slice());
+            for &(b, vb) in &nonzero {
+                let column = &mut xx[b * p..(b + 1) * p];
+                for &(a, va) in &nonzero {
+                    column[a] += vb * va;
+                }
+                xr[b] += y * vb;
+            }
             rr[g][j] += y * y;
             rows[g][j] += 1;
         }

@@ -58,23 +58,16 @@ pub(super) fn describe(
     bias: &DVector<f64>,
     notes: &mut Vec<String>,
 ) -> Vec<Effect> {
-    let Some((fit, se)) = fit_robust(m, candidates, selected) else {
+    let Some((theta, half)) = half_widths(m, candidates, selected, bias) else {
         return Vec::new();
     };
-    // The move when friction below the at-rest speed is left free adds to
-    // the other probes' (docs/diagnosis.md, "How far the intervals hold").
-    let rest = rest_shift(m, candidates, selected, &fit);
-    let bias = bias.zip_map(&rest, |b, r| b + r.abs());
-    let half = widened(&se, &bias);
     let removals = heldout_removals(m, candidates, selected);
     let mut offset = 0;
     let mut effects = Vec::new();
     for (&c, (removed, of)) in selected.iter().zip(removals) {
         let candidate = &candidates[c];
         let w = width(candidate);
-        let values: Vec<(f64, f64)> = (offset..offset + w)
-            .map(|k| (fit.theta[k], half[k]))
-            .collect();
+        let values: Vec<(f64, f64)> = (offset..offset + w).map(|k| (theta[k], half[k])).collect();
         offset += w;
         let mut effect = effect(candidate, &values, resolution, notes);
         effect.heldout_mse_removed = removed;
@@ -82,6 +75,24 @@ pub(super) fn describe(
         effects.push(effect);
     }
     effects
+}
+
+/// The selected effects' parameters and their 95% half-widths: the
+/// sampling error widened by `bias` and the move of [`rest_shift`] (see
+/// [`widened`]).
+pub(super) fn half_widths(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    bias: &DVector<f64>,
+) -> Option<(DVector<f64>, DVector<f64>)> {
+    let (fit, se) = fit_robust(m, candidates, selected)?;
+    // The move when friction below the at-rest speed is left free adds to
+    // the other probes' (docs/diagnosis.md, "How far the intervals hold").
+    let rest = rest_shift(m, candidates, selected, &fit);
+    let bias = bias.zip_map(&rest, |b, r| b + r.abs());
+    let half = widened(&se, &bias);
+    Some((fit.theta, half))
 }
 
 /// Per selected effect, in selection order, the held-out MSE it removes

@@ -27,10 +27,12 @@ use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
 use super::moments::Moments;
 use super::report::effect;
+use super::rows::Rows;
 use super::settings::Settings;
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 use crate::dynamics::Dynamics;
+use crate::parallel::map_in_order;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
 
@@ -51,6 +53,8 @@ pub(super) struct Found {
 pub(super) struct Motion<'a> {
     pub(super) candidates: &'a [Candidate],
     pub(super) selected: &'a [usize],
+    /// Each recording's kept rows at the motion band (see `data::stack`).
+    pub(super) rows: &'a [Rows],
 }
 
 /// One pass of the reversal stage: the motion stage's named effects and
@@ -66,14 +70,18 @@ struct Pass {
 }
 
 impl Pass {
+    /// The pass at `pipeline`; at the motion stage's own (`reuse`), only
+    /// the dry-friction signals are built again.
     fn new(
         (model, recordings): (&dyn Dynamics, &[Trajectory]),
-        pipeline: &Pipeline,
+        (pipeline, reuse): (&Pipeline, bool),
         (settings, needs): (&Settings, &Needs),
         motion: &Motion,
         joints: &[usize],
     ) -> anyhow::Result<Pass> {
-        let (mut data, all, _) = stack(model, recordings, pipeline, settings, Some(needs))?;
+        let rows = reuse.then_some(motion.rows);
+        let (mut data, all, ..) =
+            stack(model, recordings, pipeline, settings, (Some(needs), rows))?;
         let mut list: Vec<Candidate> = motion
             .selected
             .iter()
@@ -145,8 +153,14 @@ pub(super) fn stribeck(
         &band_pipeline,
     );
     let data = (model, recordings);
-    let gains = Pass::new(data, motion_pipeline, (&settings, &needs), &motion, joints)?;
-    let band = Pass::new(data, &band_pipeline, (&settings, &needs), &motion, joints)?;
+    // The two passes are independent: one on each core.
+    let [gains, band]: [anyhow::Result<Pass>; 2] = map_in_order(
+        &[(motion_pipeline, true), (&band_pipeline, false)],
+        |&pass| Pass::new(data, pass, (&settings, &needs), &motion, joints),
+    )
+    .try_into()
+    .unwrap_or_else(|_| unreachable!("two pipelines give two passes"));
+    let (gains, band) = (gains?, band?);
     let (mut named_gains, mut named) = (gains.base(), band.base());
     let mut current = gains.mse(&named_gains);
     let mut band_current = band.mse(&named);

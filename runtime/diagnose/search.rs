@@ -65,6 +65,11 @@ impl Nuisance {
     /// The joint's rows of `column` minus their projection on the basis.
     fn project_out(&self, column: &DVector<f64>) -> DVector<f64> {
         let v = DVector::from_iterator(self.rows.len(), self.rows.iter().map(|&r| column[r]));
+        self.project_rows_out(v)
+    }
+
+    /// `v`, the joint's rows of a column, minus its projection on the basis.
+    fn project_rows_out(&self, v: DVector<f64>) -> DVector<f64> {
         let coefficients = self.basis.tr_mul(&v);
         v - &self.basis * coefficients
     }
@@ -110,7 +115,15 @@ impl Nuisance {
     /// Residual sum of squares left by a least-squares fit of `shape`'s
     /// columns after the projection (infinite when they vanish).
     fn leaves(&self, shape: &[DVector<f64>]) -> f64 {
-        let projected: Vec<DVector<f64>> = shape.iter().map(|c| self.project_out(c)).collect();
+        self.leaves_projected(shape.iter().map(|c| self.project_out(c)).collect())
+    }
+
+    /// [`Nuisance::leaves`] for shapes given on the joint's rows only.
+    fn leaves_on_rows(&self, shape: [DVector<f64>; 2]) -> f64 {
+        self.leaves_projected(shape.map(|v| self.project_rows_out(v)).into())
+    }
+
+    fn leaves_projected(&self, projected: Vec<DVector<f64>>) -> f64 {
         let k = projected.len();
         let normal = DMatrix::from_fn(k, k, |a, b| projected[a].dot(&projected[b]));
         let moment = DVector::from_fn(k, |a, _| projected[a].dot(&self.residual));
@@ -202,11 +215,14 @@ pub(super) fn ripple_cycles(
     if first > MOST_CYCLES {
         return None;
     }
+    // The shapes on the joint's rows only: the other joints' are not fitted.
+    let angle =
+        DVector::from_iterator(nuisance.rows.len(), nuisance.rows.iter().map(|&r| angle[r]));
     let best = (first..=MOST_CYCLES)
         .map(|h| {
             let h = h as f64;
             let shape = [angle.map(|q| (h * q).sin()), angle.map(|q| (h * q).cos())];
-            (h, nuisance.leaves(&shape))
+            (h, nuisance.leaves_on_rows(shape))
         })
         .min_by(|x, y| x.1.total_cmp(&y.1))?;
     // Either column may pass the significance test: two tests per harmonic.

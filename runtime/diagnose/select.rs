@@ -2,7 +2,7 @@
 //! checks and [`super::admit`]'s significance and physical-sign checks, and
 //! a backward prune.
 
-use super::admit::{MASS_FACTOR, admits, physical, searched_threshold, significant};
+use super::admit::{MASS_FACTOR, admits, levels_hold, physical, searched_threshold, significant};
 use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::fit::{fit, identifiability, pseudo_solve};
@@ -112,7 +112,7 @@ pub(super) fn select(
             let mut trial = selected.clone();
             trial.push(c);
             let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-            (c, relative_gain(&current, &mse, &initial), mse)
+            (c, relative_gain(&current, &mse, &current), mse)
         })
         .into_iter()
         .filter(|(_, gain, _)| gain.share.is_finite())
@@ -166,7 +166,9 @@ pub(super) fn select(
             refused.push(c);
             continue;
         };
-        if let Err(note) = physical(&candidates[c], &values, gain, settings.reach) {
+        let plausible = physical(&candidates[c], &values, gain, settings.reach)
+            .and_then(|()| levels_hold(candidates, &trial, full.theta.as_slice()));
+        if let Err(note) = plausible {
             notes.push(note);
             refused.push(c);
             continue;
@@ -185,7 +187,7 @@ pub(super) fn select(
         let gain = relative_gain(
             &current,
             &cv_mse(m, dof, candidates, &trial, Scoring::Fitted),
-            &initial,
+            &current,
         );
         if gain.share >= settings.min_gain {
             notes.push(format!(
@@ -256,6 +258,7 @@ pub(super) fn prune(
             match significant(m, candidates, &trial, &full, settings.min_t) {
                 Some(values) => {
                     physical(&candidates[c], &values, Gain::NONE, settings.reach).is_err()
+                        || levels_hold(candidates, &trial, full.theta.as_slice()).is_err()
                 }
                 None => true,
             }
@@ -336,7 +339,7 @@ fn swap_bodies(
             let mut trial = others.clone();
             trial.push(c);
             let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-            (c, relative_gain(&current, &mse, initial), mse)
+            (c, relative_gain(&current, &mse, &current), mse)
         })
         .into_iter()
         .filter(|(_, gain, _)| gain.share.is_finite())

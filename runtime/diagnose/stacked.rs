@@ -20,7 +20,7 @@ pub(crate) struct Stacked {
     /// `dynamics::PRISMATIC_LEVER` prismatic): the Stribeck grid's.
     pub(super) levers: Vec<f64>,
     /// Per joint the speed below which it counts as at rest (the largest
-    /// over the recordings; see `data::MOVING`).
+    /// over the recordings; see `rows::MOVING`).
     pub(super) rest: Vec<f64>,
 }
 

@@ -6,7 +6,7 @@
 
 use nalgebra::DVector;
 
-use super::admit::{physical, significant};
+use super::admit::{levels_hold, physical, significant};
 use super::candidate::{Candidate, width};
 use super::diagnosis::Effect;
 use super::fit::{fit, identifiability};
@@ -83,6 +83,7 @@ pub(super) fn supported(
         let (_, se) = fit_robust(m, candidates, &trial)?;
         let own: Vec<f64> = full.theta.rows(at, w).iter().copied().collect();
         physical(&candidates[c], &own, gain, settings.reach).ok()?;
+        levels_hold(candidates, &trial, full.theta.as_slice()).ok()?;
         Some(Supported {
             candidate: c,
             values: (0..w).map(|k| (own[k], 1.96 * se[at + k])).collect(),

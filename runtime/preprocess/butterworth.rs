@@ -47,6 +47,37 @@ impl Biquad {
     }
 }
 
+/// Series filtered side by side by [`ZeroPhaseLowPass::apply_interleaved`]:
+/// one series' recursion waits on its previous output every sample, so
+/// interleaving independent series lets the processor overlap their
+/// latencies and use its vector units. Each lane's arithmetic is the
+/// single series' exactly (same operations in the same order), so the
+/// results are bit-identical to [`ZeroPhaseLowPass::apply`].
+const LANES: usize = 16;
+
+type Lanes = [f64; LANES];
+
+impl Biquad {
+    /// [`Biquad::run`] on every lane of `x`, visited in the iterator's
+    /// order (backwards for the second pass).
+    #[inline(always)]
+    fn run_lanes<'a>(&self, mut x: impl Iterator<Item = &'a mut Lanes>) {
+        let Some(head) = x.next() else { return };
+        let [b0, b1, b2] = self.b;
+        let [a1, a2] = self.a;
+        let mut z1 = head.map(|first| (1.0 - b0) * first);
+        let mut z2 = head.map(|first| (b2 - a2) * first);
+        for v in std::iter::once(head).chain(x) {
+            for l in 0..LANES {
+                let y = b0 * v[l] + z1[l];
+                z1[l] = b1 * v[l] - a1 * y + z2[l];
+                z2[l] = b2 * v[l] - a2 * y;
+                v[l] = y;
+            }
+        }
+    }
+}
+
 /// A zero-phase Butterworth low-pass of order [`ORDER`] per pass.
 #[derive(Debug, Clone)]
 pub struct ZeroPhaseLowPass {
@@ -101,6 +132,78 @@ impl ZeroPhaseLowPass {
         }
         y.reverse();
         y[pad..pad + n].to_vec()
+    }
+
+    /// Filters in place every series of `columns`, each column holding
+    /// `width` series interleaved sample by sample (series j at j,
+    /// j + width, ...; all columns as long), each exactly as
+    /// [`ZeroPhaseLowPass::apply`] filters it, [`LANES`] series at a time.
+    pub fn apply_interleaved(&self, columns: &mut [&mut [f64]], width: usize) {
+        let width = width.max(1);
+        let Some(n) = columns.first().map(|c| c.len() / width) else {
+            return;
+        };
+        if n < 2 {
+            return;
+        }
+        let pad = self.pad.min(n - 1);
+        let series: Vec<(usize, usize)> = (0..columns.len())
+            .flat_map(|c| (0..width).map(move |j| (c, j)))
+            .collect();
+        let mut buffer = vec![[0.0; LANES]; n + 2 * pad];
+        for batch in series.chunks(LANES) {
+            // Sample by sample, so that each sample's lanes are written
+            // together; unused lanes hold zeros.
+            let x = |l: usize, s: usize| {
+                batch
+                    .get(l)
+                    .map_or(0.0, |&(c, j)| columns[c][s * width + j])
+            };
+            for (s, v) in buffer[pad..pad + n].iter_mut().enumerate() {
+                *v = std::array::from_fn(|l| x(l, s));
+            }
+            // Odd reflection, as in `apply`.
+            for i in 1..=pad {
+                buffer[pad - i] = std::array::from_fn(|l| 2.0 * x(l, 0) - x(l, i));
+                buffer[pad + n - 1 + i] =
+                    std::array::from_fn(|l| 2.0 * x(l, n - 1) - x(l, n - 1 - i));
+            }
+            self.run_both_passes(&mut buffer);
+            for (s, v) in buffer[pad..pad + n].iter().enumerate() {
+                for (l, &(c, j)) in batch.iter().enumerate() {
+                    columns[c][s * width + j] = v[l];
+                }
+            }
+        }
+    }
+
+    /// Both passes of every section over the lanes of `buffer`, with the
+    /// processor's 256-bit vectors where it has them: the same IEEE
+    /// operations in the same order either way (no fused multiply-add),
+    /// so the same bits, at about twice the throughput.
+    fn run_both_passes(&self, buffer: &mut [Lanes]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked just above.
+            return unsafe { self.run_both_passes_avx2(buffer) };
+        }
+        self.run_both_passes_portable(buffer)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_both_passes_avx2(&self, buffer: &mut [Lanes]) {
+        self.run_both_passes_portable(buffer)
+    }
+
+    #[inline(always)]
+    fn run_both_passes_portable(&self, buffer: &mut [Lanes]) {
+        for section in &self.sections {
+            section.run_lanes(buffer.iter_mut());
+        }
+        for section in &self.sections {
+            section.run_lanes(buffer.iter_mut().rev());
+        }
     }
 
     /// Power gain of the zero-phase filter at `f_hz` (|H|^4 of one pass).
@@ -159,6 +262,39 @@ mod tests {
         assert!(ZeroPhaseLowPass::new(50.0, 0.01).is_err());
         assert!(ZeroPhaseLowPass::new(0.0, 0.01).is_err());
         assert!(ZeroPhaseLowPass::new(f64::NAN, 0.01).is_err());
+    }
+
+    #[test]
+    fn interleaved_series_are_filtered_bit_for_bit_as_alone() {
+        let filter = ZeroPhaseLowPass::new(3.0, 1e-3).unwrap();
+        let width = 3;
+        let series = |c: usize, j: usize| -> Vec<f64> {
+            (0..2500)
+                .map(|s| ((s * (c + 2) + 7 * j) as f64 * 0.013).sin() + 0.1 * (c + j) as f64)
+                .collect()
+        };
+        // 11 columns of 3 series: 33 lanes, the last batch partly empty.
+        let mut columns: Vec<Vec<f64>> = (0..11)
+            .map(|c| {
+                (0..2500 * width)
+                    .map(|k| series(c, k % width)[k / width])
+                    .collect()
+            })
+            .collect();
+        let mut views: Vec<&mut [f64]> = columns.iter_mut().map(|c| c.as_mut_slice()).collect();
+        filter.apply_interleaved(&mut views, width);
+        for (c, column) in columns.iter().enumerate() {
+            for j in 0..width {
+                let alone = filter.apply(&series(c, j));
+                let together: Vec<f64> = column.iter().skip(j).step_by(width).copied().collect();
+                assert!(
+                    alone
+                        .iter()
+                        .zip(&together)
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                );
+            }
+        }
     }
 
     proptest! {

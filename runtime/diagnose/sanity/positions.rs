@@ -123,8 +123,12 @@ fn finding(
     let (radians_low, radians_high) = (low.to_radians(), high.to_radians());
     // Within one turn, angles kept in [0, 2 pi) (a logger's convention)
     // explain an excursion as well as degrees of a small motion do; beyond a
-    // turn only degrees (or a multi-turn zero) do.
-    if limits.revolute && !unwrapped && inside(radians_low, radians_high) {
+    // turn only degrees (or a multi-turn zero) do. Degrees read as radians
+    // overshoot by 57 times the motion: an overshoot within the joint's
+    // range is a motion in radians (a poorly tracked one) or a wrong zero,
+    // not a few degrees of motion.
+    let far = beyond > limits.upper - limits.lower;
+    if limits.revolute && !unwrapped && far && inside(radians_low, radians_high) {
         let fix = if all_revolute {
             "pass `--angles deg`"
         } else {
@@ -196,6 +200,15 @@ mod tests {
             "{}",
             wrapped.message
         );
+        // 0.39 to 4.17 rad against [-0.0175, 3.75]: a motion in radians
+        // that overshoots, not 3.8 degrees of motion.
+        let panda6 = Joint {
+            lower: -0.0175,
+            upper: 3.75,
+            revolute: true,
+        };
+        let overshoot = finding(&panda6, (0.387, 4.17), 5, true).unwrap();
+        assert_eq!(overshoot.check, Check::BeyondLimits);
         let prismatic = Joint {
             lower: 0.0,
             upper: 0.5,

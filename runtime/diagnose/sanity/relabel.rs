@@ -204,6 +204,19 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
             fit.solve(&order, &sign)
         })
         .collect();
+    // Each joint's share as recorded and with any one torque flipped, once
+    // (every pair below uses them).
+    let as_recorded: Vec<f64> = (0..n)
+        .map(|i| fit.unexplained(&recorded, i, i, 1.0))
+        .collect();
+    let flipped_share: Vec<Vec<f64>> = (0..n)
+        .map(|f| {
+            let sign = |i: usize| if i == f { -1.0 } else { 1.0 };
+            (0..n)
+                .map(|i| fit.unexplained(&flipped[f], i, i, sign(i)))
+                .collect()
+        })
+        .collect();
     let mut found = Vec::new();
     for j in 0..n {
         for k in j + 1..n {
@@ -213,14 +226,8 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
             let exchanged = fit
                 .unexplained(&theta, j, k, 1.0)
                 .max(fit.unexplained(&theta, k, j, 1.0));
-            let as_recorded = fit
-                .unexplained(&recorded, j, j, 1.0)
-                .max(fit.unexplained(&recorded, k, k, 1.0));
-            let flip = |f: usize| {
-                let sign = |i: usize| if i == f { -1.0 } else { 1.0 };
-                fit.unexplained(&flipped[f], j, j, sign(j))
-                    .max(fit.unexplained(&flipped[f], k, k, sign(k)))
-            };
+            let as_recorded = as_recorded[j].max(as_recorded[k]);
+            let flip = |f: usize| flipped_share[f][j].max(flipped_share[f][k]);
             found.push(Exchange {
                 joints: [j + 1, k + 1],
                 exchanged,
