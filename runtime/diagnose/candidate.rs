@@ -3,7 +3,6 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::dry;
 use super::kind::Kind;
 use super::search;
 // A candidate carries its shape; the modules that fit candidates name it here.
@@ -76,9 +75,8 @@ pub(super) fn label(candidate: &Candidate) -> String {
 
 /// The fitted columns of the stacked data, filtered like the residual.
 pub(super) struct Columns {
-    /// qd, moving sign, qdd, 1, q of each row's joint, and the Coulomb
-    /// column's ramp at rest (`super::dry::rest_ramp`).
-    pub(super) own: [DVector<f64>; 6],
+    /// qd, moving sign, qdd, 1, q of each row's joint.
+    pub(super) own: [DVector<f64>; 5],
     /// The generated model's sign(qd).
     pub(super) coulomb_applied: DVector<f64>,
     /// The regressor's inertial columns, ten per link.
@@ -124,7 +122,7 @@ pub(super) struct Columns {
 pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Vec<Candidate> {
     let n = data.dof;
     let Columns {
-        own: [qd, sign, qdd, ones, angle, ramp],
+        own: [qd, sign, qdd, ones, angle],
         coulomb_applied,
         mut inertial,
         tilt,
@@ -158,21 +156,10 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             settings: Vec::new(),
             searched: 1,
         };
-        // What the other candidates could explain on the joint's rows, for
-        // the choices of shape below.
-        let linear: Vec<&DVector<f64>> = [&qd, &qdd, &ones, &angle, &model_torque]
-            .into_iter()
-            .chain(&inertial)
-            .chain(tilt.iter().flat_map(|(_, columns)| columns))
-            .collect();
-        let without_dry = search::Nuisance::new(data, j, &linear);
-        let share = dry::rest_share(&without_dry, &sign, &ramp);
         list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
         list.push(Candidate {
             applied: Some(own(j, &|r| coulomb_applied[r])),
-            ..one(Kind::CoulombFriction, "level", &|r| {
-                sign[r] + share * ramp[r]
-            })
+            ..one(Kind::CoulombFriction, "level", &|r| sign[r])
         });
         list.push(Candidate {
             applied: Some(own(j, &|r| coulomb_applied[r] * coulomb_applied[r])),
@@ -189,7 +176,12 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             columns: vec![own(j, &|r| angle[r]), own(j, &|r| ones[r])],
             ..one(Kind::JointSpring, "", &|_| 0.0)
         });
-        let nuisance = without_dry.with(data, &sign);
+        let linear: Vec<&DVector<f64>> = [&qd, &sign, &qdd, &ones, &angle, &model_torque]
+            .into_iter()
+            .chain(&inertial)
+            .chain(tilt.iter().flat_map(|(_, columns)| columns))
+            .collect();
+        let nuisance = search::Nuisance::new(data, j, &linear);
         let at_rest = rest.get(j).copied().unwrap_or(0.0);
         if let Some((k, velocity, searched)) =
             search::stribeck_velocity(&nuisance, at_rest, data.levers[j], &stribeck)

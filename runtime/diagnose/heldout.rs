@@ -23,9 +23,8 @@ pub(super) enum Scoring {
     /// friction with the plain sign(qd), also at rest): what `evaluate`
     /// will show; the reported MSEs.
     Applied,
-    /// With the fitted columns (Coulomb friction at rest as the data
-    /// choose it, `super::dry`, where the friction is static and not a
-    /// law of the speed): how well each effect's physics
+    /// With the fitted columns (Coulomb friction zero at rest, where the
+    /// friction is static and unknown): how well each effect's physics
     /// explains the data, which decides what is named. A joint that sticks
     /// half the time would otherwise make the right kind look worse than a
     /// wrong one.

@@ -9,8 +9,7 @@
 //! contiguous cross-validation segments ([`segment_counts`]).
 //! The residual is linear in the parameters of
 //! every candidate effect: per joint viscous friction (column qd_j), Coulomb
-//! friction (sign(qd_j); at rest a data-chosen share of a ramp between the
-//! signs around the rest, `dry.rs`), armature (qdd_j) and a torque offset
+//! friction (sign(qd_j), zero at rest), armature (qdd_j) and a torque offset
 //! (1) and the other kinds of [`Kind`]; a payload on the last link and an
 //! inertial error of any link (the generated regressor's inertial columns). Effects are
 //! chosen by forward selection, each step keeping the candidate that lowers
@@ -89,7 +88,6 @@ mod candidate;
 pub mod data;
 mod diagnosis;
 mod digits;
-mod dry;
 mod fit;
 mod gain;
 mod held;

@@ -29,9 +29,8 @@ pub(super) struct Rows {
     pub(super) qdd: Vec<f64>,
     pub(super) gravity: Vec<f64>,
     pub(super) coulomb_applied: Vec<f64>,
-    /// Fitted own-joint columns: qd, moving sign, qdd, 1, q, and the
-    /// Coulomb column's ramp at rest (`super::dry::rest_ramp`).
-    pub(super) own: [Vec<f64>; 6],
+    /// Fitted own-joint columns: qd, moving sign, qdd, 1, q.
+    pub(super) own: [Vec<f64>; 5],
     /// The regressor's inertial columns.
     pub(super) inertial: Vec<Vec<f64>>,
     /// Own-joint features of the unexplained-structure check
@@ -202,11 +201,8 @@ impl Rows {
     /// pass at the motion band, every other signal being the same numbers.
     /// A link's columns only with `bodies`; the tilt's zero without `tilt`.
     pub(super) fn with_dry(&self, dry: Rows, (bodies, tilt): (bool, bool)) -> Rows {
-        // The reversal stage's Coulomb column is the moving sign alone (a
-        // zero ramp at rest, see `fill`).
         let own = |k: usize| match k {
             1 => dry.own[1].clone(),
-            5 => vec![0.0; self.own[5].len()],
             _ => self.own[k].clone(),
         };
         Rows {
@@ -267,14 +263,6 @@ pub(super) fn fill(
     };
     let rate = torque_rate(&predicted, step(traj));
     let measured_rate = torque_rate(traj.tau(), step(traj));
-    // The reversal stage fits on the moving rows only and judges a
-    // breakaway, which lives next to rest: there the Coulomb column stays
-    // the moving sign (a zero ramp), or its share at rest would take the
-    // breakaway's place.
-    let ramps = match stage {
-        Stage::Motion => super::dry::rest_ramps(&band.qd, &band.rest),
-        Stage::Reversals => vec![vec![0.0; traj.len()]; n],
-    };
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     // Rows are built a few samples at a time in a tile that stays in the
     // cache, then appended column by column: written sample by sample, the
@@ -306,11 +294,7 @@ pub(super) fn fill(
             rows.gravity.push(load[i]);
             rows.coulomb_applied.push(coulomb_sign(qd[i]));
             let sign = moving_sign(resolved, band.rest[i]);
-            let ramp = ramps[i][s];
-            for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i], ramp]
-                .into_iter()
-                .enumerate()
-            {
+            for (k, v) in [qd[i], sign, qdd[i], 1.0, q[i]].into_iter().enumerate() {
                 rows.own[k].push(v);
             }
             for (k, column) in rows.inertial.iter_mut().enumerate() {

@@ -74,44 +74,6 @@ impl Nuisance {
         v - &self.basis * coefficients
     }
 
-    /// The nuisance with `column` added to it.
-    pub(super) fn with(&self, data: &Stacked, column: &DVector<f64>) -> Nuisance {
-        let length = self
-            .rows
-            .iter()
-            .map(|&r| column[r] * column[r])
-            .sum::<f64>();
-        let mut added = self.project_out(column);
-        let norm = added.norm();
-        let mut basis = self.basis.clone();
-        // As in `orthonormal_basis`: a column without independent content
-        // is not added.
-        if norm > 1e-9 * length.sqrt() {
-            added /= norm;
-            let at = basis.ncols();
-            basis = basis.insert_column(at, 0.0);
-            basis.set_column(at, &added);
-        }
-        let mut nuisance = Nuisance {
-            rows: self.rows.clone(),
-            basis,
-            residual: DVector::zeros(0),
-        };
-        nuisance.residual = nuisance.project_out(&data.residual);
-        nuisance
-    }
-
-    /// The coefficients of `shape`'s columns in a least-squares fit of the
-    /// residual with the nuisance (`None` when they are not independent of
-    /// it and of each other).
-    pub(super) fn coefficients(&self, shape: &[DVector<f64>]) -> Option<DVector<f64>> {
-        let projected: Vec<DVector<f64>> = shape.iter().map(|c| self.project_out(c)).collect();
-        let k = projected.len();
-        let normal = DMatrix::from_fn(k, k, |a, b| projected[a].dot(&projected[b]));
-        let moment = DVector::from_fn(k, |a, _| projected[a].dot(&self.residual));
-        normal.cholesky().map(|c| c.solve(&moment))
-    }
-
     /// Residual sum of squares left by a least-squares fit of `shape`'s
     /// columns after the projection (infinite when they vanish).
     fn leaves(&self, shape: &[DVector<f64>]) -> f64 {

@@ -107,9 +107,8 @@ impl Diagnosis {
             if fitted < 0.8 * after {
                 let _ = writeln!(
                     out,
-                    "         {} {torque}^2 ({}) with Coulomb friction at rest as fitted (static, \
-                     not sign(qd)): the joint sticks, and there the model's sign(qd) term follows \
-                     velocity noise",
+                    "         {} {torque}^2 ({}) with Coulomb friction zero while the joint is at \
+                     rest: it sticks, and there the model's sign(qd) term follows velocity noise",
                     sig(fitted),
                     percent_change(before, fitted)
                 );
