@@ -52,26 +52,19 @@ impl Rows {
     /// Everything the torque filter applies to: residual, measured torque
     /// and every column.
     pub(super) fn filtered_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
-        [
-            &mut self.residual,
-            &mut self.measured,
-            &mut self.coulomb_applied,
-        ]
-        .into_iter()
-        .chain(self.own.iter_mut())
-        .chain(self.inertial.iter_mut())
-        .chain(self.generic.iter_mut())
-        .chain(self.tilt.iter_mut())
-        .chain([&mut self.measured_rate])
-        .chain(self.stribeck.iter_mut())
+        self.parts_mut().1
     }
 
     /// Every signal, filtered or not.
     fn signals_mut(&mut self) -> impl Iterator<Item = &mut Vec<f64>> {
-        [
-            &mut self.qd,
-            &mut self.qdd,
-            &mut self.gravity,
+        let (states, filtered) = self.parts_mut();
+        states.into_iter().chain(filtered)
+    }
+
+    /// The signals the torque filter leaves alone (velocity, acceleration
+    /// and gravity load, already at the states' band) and those it filters.
+    fn parts_mut(&mut self) -> ([&mut Vec<f64>; 3], impl Iterator<Item = &mut Vec<f64>>) {
+        let filtered = [
             &mut self.residual,
             &mut self.measured,
             &mut self.coulomb_applied,
@@ -82,7 +75,8 @@ impl Rows {
         .chain(self.generic.iter_mut())
         .chain(self.tilt.iter_mut())
         .chain([&mut self.measured_rate])
-        .chain(self.stribeck.iter_mut())
+        .chain(self.stribeck.iter_mut());
+        ([&mut self.qd, &mut self.qdd, &mut self.gravity], filtered)
     }
 
     /// Every signal emptied, its memory kept.
