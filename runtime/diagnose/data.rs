@@ -136,30 +136,35 @@ pub(super) fn stack(
             (Filter::Butterworth { cutoff_hz }, Some(needs), Some(_)) => {
                 let dt = step(raw);
                 let band = band::velocity(raw, &settings, &moving, needs.band_hz)?;
-                for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
-                    *largest = largest.max(*r);
-                }
+                widen(&mut at_rest, &band.rest);
                 fill_dry(&mut rows, &band, &levers);
                 filter_rows(&mut rows, n, cutoff_hz, dt)?;
                 (Pipeline::kept_samples(&settings, raw.len(), dt), dt)
             }
-            (Filter::Butterworth { cutoff_hz }, ..) => {
-                // Parallel filtering: the whole equation tau = Y theta passes
-                // the torque filter, so every column is compared exactly.
-                let traj = settings.states_at_full_rate(raw)?;
+            (filter, ..) => {
+                let cutoff = match filter {
+                    Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
+                    _ => None,
+                };
+                // Parallel filtering (Butterworth): the whole equation tau =
+                // Y theta passes the torque filter, so every column is
+                // compared exactly.
+                let traj = match cutoff {
+                    Some(_) => settings.states_at_full_rate(raw)?,
+                    None => settings.apply(raw)?,
+                };
                 let dt = step(&traj);
-                let band = match stage {
-                    Stage::Motion => {
+                let band = match (cutoff, stage) {
+                    (None, _) => Band::of(&traj, &moving),
+                    (Some(_), Stage::Motion) => {
                         Band::of(&traj, &rest_velocities(raw, &traj, &settings, &moving))
                     }
-                    Stage::Reversals => {
+                    (Some(_), Stage::Reversals) => {
                         let band_hz = reversal.map_or(0.0, |r| r.band_hz);
                         band::velocity(raw, &settings, &moving, band_hz)?
                     }
                 };
-                for (largest, r) in at_rest.iter_mut().zip(&band.rest) {
-                    *largest = largest.max(*r);
-                }
+                widen(&mut at_rest, &band.rest);
                 fill(
                     &mut rows,
                     (model, models(&tilted)),
@@ -168,25 +173,13 @@ pub(super) fn stack(
                     (stage, bodies),
                     &levers,
                 )?;
-                filter_rows(&mut rows, n, cutoff_hz, dt)?;
-                (Pipeline::kept_samples(&settings, traj.len(), dt), dt)
-            }
-            _ => {
-                let traj = settings.apply(raw)?;
-                let dt = step(&traj);
-                for (largest, r) in at_rest.iter_mut().zip(&moving) {
-                    *largest = largest.max(*r);
+                match cutoff {
+                    Some(cutoff_hz) => {
+                        filter_rows(&mut rows, n, cutoff_hz, dt)?;
+                        (Pipeline::kept_samples(&settings, traj.len(), dt), dt)
+                    }
+                    None => ((0..traj.len()).collect(), dt),
                 }
-                let band = Band::of(&traj, &moving);
-                fill(
-                    &mut rows,
-                    (model, models(&tilted)),
-                    &traj,
-                    &band,
-                    (stage, bodies),
-                    &levers,
-                )?;
-                ((0..traj.len()).collect(), dt)
             }
         };
         if let Some(at) = rows.first_non_finite() {
@@ -370,6 +363,13 @@ pub(super) fn tilt_directions(down: &Vector3<f64>) -> [Vector3<f64>; 2] {
     };
     let first = (helper - down * down.dot(&helper)).normalize();
     [first, down.cross(&first)]
+}
+
+/// Raises each joint's largest at-rest speed over the recordings to `rest`.
+fn widen(at_rest: &mut [f64], rest: &[f64]) {
+    for (largest, r) in at_rest.iter_mut().zip(rest) {
+        *largest = largest.max(*r);
+    }
 }
 
 /// The at-rest speed of each joint for the Butterworth pipeline: three

@@ -107,16 +107,7 @@ pub(super) fn select(
                     && admissible(candidates, *c, &selected)
             })
             .collect();
-        // Each candidate's cross-validation is independent of the others'.
-        let scored: Vec<(usize, Gain, Vec<f64>)> = map_in_order(&open, |&c| {
-            let mut trial = selected.clone();
-            trial.push(c);
-            let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-            (c, relative_gain(&current, &mse, &current), mse)
-        })
-        .into_iter()
-        .filter(|(_, gain, _)| gain.share.is_finite())
-        .collect();
+        let scored = score(m, dof, candidates, &selected, &open, &current);
         let best = scored
             .iter()
             .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
@@ -202,14 +193,7 @@ pub(super) fn select(
         }
     }
     // Refusals at a step were judged beside the bodies named then.
-    swap_bodies(
-        m,
-        candidates,
-        &mut selected,
-        &unidentifiable,
-        &initial,
-        settings,
-    );
+    swap_bodies(m, candidates, &mut selected, &unidentifiable, dof, settings);
     one_body(m, candidates, &mut selected, &unidentifiable, settings);
     refused.extend(prune(m, candidates, &mut selected, &mut notes, settings));
     payload_over_link_error(m, candidates, &mut selected, &mut alternatives, settings);
@@ -300,6 +284,28 @@ fn fewer_parameters<'a>(
         .unwrap_or(chosen)
 }
 
+/// Each `open` candidate added to `base`, scored by its held-out gain over
+/// `current` (the residual at this step, also the gain floor's reference);
+/// candidates whose gain is undefined are left out. Each candidate's
+/// cross-validation is independent of the others'.
+fn score(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    base: &[usize],
+    open: &[usize],
+    current: &[f64],
+) -> Vec<(usize, Gain, Vec<f64>)> {
+    map_in_order(open, |&c| {
+        let trial = [base, &[c]].concat();
+        let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
+        (c, relative_gain(current, &mse, current), mse)
+    })
+    .into_iter()
+    .filter(|(_, gain, _)| gain.share.is_finite())
+    .collect()
+}
+
 /// Bodies (payloads, inertial errors) named while joint effects were
 /// still missing were chosen against residuals those dominated, where one
 /// link's error looks like its neighbour's and a whole-body error like a
@@ -313,10 +319,9 @@ fn swap_bodies(
     candidates: &[Candidate],
     selected: &mut [usize],
     excluded: &[usize],
-    initial: &[f64],
+    dof: usize,
     settings: Settings,
 ) {
-    let dof = initial.len();
     let is_body = |c: usize| candidates[c].link.is_some();
     for at in 0..selected.len() {
         if !is_body(selected[at]) {
@@ -335,15 +340,7 @@ fn swap_bodies(
                     && admissible(candidates, c, &others)
             })
             .collect();
-        let scored: Vec<(usize, Gain, Vec<f64>)> = map_in_order(&open, |&c| {
-            let mut trial = others.clone();
-            trial.push(c);
-            let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-            (c, relative_gain(&current, &mse, &current), mse)
-        })
-        .into_iter()
-        .filter(|(_, gain, _)| gain.share.is_finite())
-        .collect();
+        let scored = score(m, dof, candidates, &others, &open, &current);
         let Some(best) = scored.iter().max_by(|a, b| a.1.share.total_cmp(&b.1.share)) else {
             continue;
         };
