@@ -40,13 +40,14 @@ pub(super) fn excludes_none(candidate: &Candidate, values: &[(f64, f64)]) -> boo
 
 /// Drops, one at a time (the last named first, as the backward check
 /// does), each named effect whose widened interval includes no effect,
-/// with a note; `bias` gives the bias per parameter of a selection.
+/// with a note; `bias` gives the bias per parameter of a selection and is
+/// called last for the final one.
 pub(super) fn drop_unheld(
     m: &Moments,
     candidates: &[Candidate],
     selected: &mut Vec<usize>,
     notes: &mut Vec<String>,
-    bias: impl Fn(&[usize]) -> DVector<f64>,
+    mut bias: impl FnMut(&[usize]) -> DVector<f64>,
 ) {
     while let Some((theta, half)) = half_widths(m, candidates, selected, &bias(selected)) {
         let mut offset = 0;

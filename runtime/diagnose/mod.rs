@@ -343,10 +343,13 @@ pub fn diagnose(
         let timing = supported::timing_shift(&moments, &candidates, selected);
         supported::bias(supported, timing, width)
     };
+    // The last selection judged is the final one: its supported effects
+    // are the report's.
+    let mut supported = Vec::new();
     held::drop_unheld(&moments, &candidates, &mut selected, &mut notes, |s| {
-        let found = supported::supported(&moments, data.dof, &candidates, s, settings);
+        supported = supported::supported(&moments, data.dof, &candidates, s, settings);
         let timing = supported::timing_shift(&moments, &candidates, s);
-        held::bias_elsewhere(&candidates, s, &found, timing)
+        held::bias_elsewhere(&candidates, s, &supported, timing)
     });
     let motion = reversals::Motion {
         candidates: &candidates,
@@ -368,7 +371,6 @@ pub fn diagnose(
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
-    let supported = supported::supported(&moments, data.dof, &candidates, &selected, settings);
     let mut effects = describe(
         &moments,
         &candidates,
