@@ -215,10 +215,10 @@ pub(super) fn levels_hold(
     let mut asymmetries = Vec::new();
     for &c in trial {
         let candidate = &candidates[c];
-        match (candidate.kind, candidate.shape.clone(), candidate.joint) {
+        match (candidate.kind, &candidate.shape, candidate.joint) {
             (Kind::CoulombFriction, _, Some(j)) => coulomb.push((j, theta[at])),
             (Kind::CoulombAsymmetry, Shape::Asymmetry { modelled_coulomb }, Some(j)) => {
-                asymmetries.push((j, theta[at], modelled_coulomb))
+                asymmetries.push((j, theta[at], *modelled_coulomb))
             }
             _ => {}
         }
