@@ -1,8 +1,6 @@
 //! Training: standardization, initialization, mini-batch Adam with
 //! whole-batch matrix products, early stopping.
 
-use std::collections::HashSet;
-
 use nalgebra::{DMatrix, DVector};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -11,6 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use super::error::TrainError;
 use super::hyperparams::{Activation, MlpValidParams};
 use super::linalg::{Transposed, multiply, sum};
+use super::split::split_rows;
 use super::{Dataset, EpochReport, History, Mlp};
 
 /// Separate ChaCha streams keep split, init and shuffling independent: a
@@ -319,52 +318,6 @@ fn adam(p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr_t: f64, decay
     }
 }
 
-/// Splits row indices into (train, validation), by whole groups when the
-/// dataset has them so no trajectory appears on both sides.
-pub(crate) fn split_rows(
-    data: &Dataset,
-    fraction: f64,
-    rng: &mut ChaCha8Rng,
-) -> Result<(Vec<usize>, Vec<usize>), TrainError> {
-    let n = data.len();
-    if fraction <= 0.0 {
-        return Ok(((0..n).collect(), Vec::new()));
-    }
-    let Some(groups) = &data.groups else {
-        if n < 2 {
-            return Err(TrainError::Split(format!(
-                "need at least 2 samples, found {n}"
-            )));
-        }
-        let mut idx: Vec<usize> = (0..n).collect();
-        idx.shuffle(rng);
-        let mut held = idx.split_off(n - held_out(fraction, n));
-        idx.sort_unstable();
-        held.sort_unstable();
-        return Ok((idx, held));
-    };
-    let mut ids = groups.clone();
-    ids.sort_unstable();
-    ids.dedup();
-    if ids.len() < 2 {
-        return Err(TrainError::Split(format!(
-            "splitting by groups needs at least 2 groups (recordings), found {}: pass at least 2 recordings",
-            ids.len()
-        )));
-    }
-    ids.shuffle(rng);
-    let held: HashSet<usize> = ids[..held_out(fraction, ids.len())]
-        .iter()
-        .copied()
-        .collect();
-    Ok((0..n).partition(|&i| !held.contains(&groups[i])))
-}
-
-/// Number of held-out units: rounded share, keeping at least one on each side.
-fn held_out(fraction: f64, count: usize) -> usize {
-    ((fraction * count as f64).round() as usize).clamp(1, count - 1)
-}
-
 /// Standardized train/validation matrices and the scalers that made them.
 struct Prepared {
     x: DMatrix<f64>,
@@ -555,17 +508,6 @@ impl MlpValidParams {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use proptest::prelude::*;
-
-    fn data_with_groups(groups: Vec<usize>) -> Dataset {
-        let n = groups.len();
-        Dataset::new(
-            DMatrix::from_fn(n, 2, |r, c| (r + c) as f64),
-            DMatrix::from_fn(n, 1, |r, _| r as f64),
-            Some(groups),
-        )
-        .unwrap()
-    }
 
     /// Compares analytic gradients with central finite differences.
     #[test]
@@ -606,35 +548,6 @@ mod tests {
                     );
                 }
             }
-        }
-    }
-
-    #[test]
-    fn group_split_needs_two_groups() {
-        let err = split_rows(&data_with_groups(vec![4; 5]), 0.3, &mut rng(0, 0)).unwrap_err();
-        assert!(
-            err.to_string()
-                .contains("at least 2 groups (recordings), found 1"),
-            "{err}"
-        );
-    }
-
-    proptest! {
-        #[test]
-        fn group_split_never_leaks(
-            groups in prop::collection::vec(0usize..6, 2..60),
-            fraction in 0.05f64..0.95,
-            seed in any::<u64>(),
-        ) {
-            let distinct: HashSet<usize> = groups.iter().copied().collect();
-            prop_assume!(distinct.len() >= 2);
-            let data = data_with_groups(groups.clone());
-            let (train, valid) = split_rows(&data, fraction, &mut rng(seed, 0)).unwrap();
-            prop_assert_eq!(train.len() + valid.len(), groups.len());
-            prop_assert!(!train.is_empty() && !valid.is_empty());
-            let tg: HashSet<usize> = train.iter().map(|&i| groups[i]).collect();
-            let vg: HashSet<usize> = valid.iter().map(|&i| groups[i]).collect();
-            prop_assert!(tg.is_disjoint(&vg));
         }
     }
 }
