@@ -17,7 +17,7 @@
 use super::admit::{levels_hold, physical, significant};
 use super::candidate::{Candidate, label, width};
 use super::fit::{fit, identifiability};
-use super::gain::relative_gain;
+use super::gain::{Gain, relative_gain};
 use super::heldout::{Scoring, cv_sse_by_group};
 use super::kind::Kind;
 use super::moments::Moments;
@@ -38,6 +38,9 @@ pub(super) fn complete_friction(
     settings: Settings,
 ) -> bool {
     let mut added = false;
+    // The held-out errors without the companion, shared by the joints'
+    // checks until one is named.
+    let mut before = None;
     for j in 0..dof {
         let at = |kind: Kind| {
             candidates
@@ -53,7 +56,14 @@ pub(super) fn complete_friction(
         }
         let mut trial = selected.clone();
         trial.push(viscous);
-        if let Some(cut) = holds(m, dof, candidates, selected, &trial, j, settings) {
+        let base = Base {
+            selected,
+            before: &mut before,
+        };
+        if let Some(cut) = holds(m, dof, candidates, base, &trial, j, settings) {
+            // Named again after a prune dropped it: one note, the last.
+            let this = format!("{}: named beside", label(&candidates[viscous]));
+            notes.retain(|n| !n.starts_with(&this));
             notes.push(format!(
                 "{}: named beside the joint's Coulomb friction (the friction law's second \
                  term, not held to the {:.0}% gain a new effect needs): \
@@ -66,6 +76,7 @@ pub(super) fn complete_friction(
                 cut.segments
             ));
             *selected = trial;
+            before = None;
             added = true;
         }
     }
@@ -79,36 +90,47 @@ struct Cut {
     segments: usize,
 }
 
-/// Whether the last candidate of `trial` (on joint `j`) holds beside
-/// `selected`: the checks of forward selection but the gain bar, and a cut
-/// of the joint's held-out error in most segments.
+/// The selection a companion is tried beside, and its held-out squared
+/// residuals per group and joint once computed.
+struct Base<'a> {
+    selected: &'a [usize],
+    before: &'a mut Option<Vec<Vec<f64>>>,
+}
+
+/// Whether the last candidate of `trial` (on joint `j`) holds beside the
+/// base selection: the checks of forward selection but the gain bar, and a
+/// cut of the joint's held-out error in most segments.
 fn holds(
     m: &Moments,
     dof: usize,
     candidates: &[Candidate],
-    selected: &[usize],
+    base: Base,
     trial: &[usize],
     j: usize,
     settings: Settings,
 ) -> Option<Cut> {
     let full = fit(m, candidates, trial, |_| true)?;
-    let offset: usize = selected.iter().map(|&c| width(&candidates[c])).sum();
+    let offset: usize = base.selected.iter().map(|&c| width(&candidates[c])).sum();
     let added = *trial.last()?;
     let w = width(&candidates[added]);
     if identifiability(&full.information, offset..offset + w) < COLLINEAR {
         return None;
     }
     let values = significant(m, candidates, trial, &full, settings.min_t)?;
-    let before = cv_sse_by_group(m, dof, candidates, selected, Scoring::Fitted)?;
+    // The gain only words the refusal's note, which is not kept here.
+    physical(&candidates[added], &values, Gain::NONE, settings.reach).ok()?;
+    levels_hold(candidates, trial, full.theta.as_slice()).ok()?;
+    if base.before.is_none() {
+        *base.before = cv_sse_by_group(m, dof, candidates, base.selected, Scoring::Fitted);
+    }
+    let before = base.before.as_ref()?;
     let after = cv_sse_by_group(m, dof, candidates, trial, Scoring::Fitted)?;
     let total = |by: &[Vec<f64>]| by.iter().fold(0.0, |s, g| s + g[j]);
-    let mut joint_only = vec![0.0; dof];
-    joint_only[j] = total(&before);
-    let mut joint_after = joint_only.clone();
+    let mut joint_before = vec![0.0; dof];
+    joint_before[j] = total(before);
+    let mut joint_after = joint_before.clone();
     joint_after[j] = total(&after);
-    let gain = relative_gain(&joint_only, &joint_after, &joint_only);
-    physical(&candidates[added], &values, gain, settings.reach).ok()?;
-    levels_hold(candidates, trial, full.theta.as_slice()).ok()?;
+    let gain = relative_gain(&joint_before, &joint_after, &joint_before);
     let segments = before.len();
     let better = before
         .iter()
