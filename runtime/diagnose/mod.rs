@@ -162,10 +162,7 @@ fn drop_unhelpful(
 ) {
     while let Some(position) = report::heldout_removals(m, candidates, selected)
         .iter()
-        .enumerate()
-        .position(|(k, &(removed, _))| {
-            removed <= 0.0 && !helps_the_rest(m, candidates, selected, k)
-        })
+        .position(|&(removed, _)| removed <= 0.0)
     {
         let dropped = selected.remove(position);
         notes.push(format!(
@@ -174,35 +171,6 @@ fn drop_unhelpful(
             label(&candidates[dropped])
         ));
     }
-}
-
-/// Whether the effect at `position` of `selected` lowers its joints' held-out
-/// MSE (applied columns) beside all the others: counted in the order named
-/// an effect can seem to remove nothing because a later one (a payload that
-/// replaced an early link error) did the work it needed (viscous friction
-/// on three Panda joints beside a payload, 12 of 12 segments better with
-/// it in the final model).
-fn helps_the_rest(
-    m: &Moments,
-    candidates: &[Candidate],
-    selected: &[usize],
-    position: usize,
-) -> bool {
-    let dof = m.xx.first().map_or(0, Vec::len);
-    let rest: Vec<usize> = selected
-        .iter()
-        .enumerate()
-        .filter_map(|(k, &c)| (k != position).then_some(c))
-        .collect();
-    let (with, without) = (
-        cv_mse_per_joint(m, dof, candidates, selected),
-        cv_mse_per_joint(m, dof, candidates, &rest),
-    );
-    let joints: Vec<usize> = match candidates[selected[position]].joint {
-        Some(j) => vec![j],
-        None => (0..dof).collect(),
-    };
-    joints.iter().map(|&j| without[j] - with[j]).sum::<f64>() > 0.0
 }
 
 /// A torque offset and direction-dependent dry friction are the same torque
