@@ -39,29 +39,44 @@ pub(super) fn cv_mse(
     selected: &[usize],
     scoring: Scoring,
 ) -> Vec<f64> {
+    let Some(by_group) = cv_sse_by_group(m, dof, candidates, selected, scoring) else {
+        return vec![f64::INFINITY; dof];
+    };
+    (0..dof)
+        .map(|j| {
+            let sse = by_group.iter().fold(0.0, |s, g| s + g[j]);
+            let count: usize = m.rows.iter().map(|r| r[j]).sum();
+            sse / count.max(1) as f64
+        })
+        .collect()
+}
+
+/// Each held-out group's squared residual per joint (group, joint) after
+/// the effects fitted on the other groups; `None` when a fit fails.
+pub(super) fn cv_sse_by_group(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    selected: &[usize],
+    scoring: Scoring,
+) -> Option<Vec<Vec<f64>>> {
     let fitted = columns_of(candidates, selected);
     let columns = match scoring {
         Scoring::Applied => m.applied(&fitted),
         Scoring::Fitted => fitted,
     };
-    let mut sse = vec![0.0; dof];
-    let mut count = vec![0usize; dof];
-    for g in 0..m.xx.len() {
-        let coefficients = if selected.is_empty() {
-            DVector::zeros(0)
-        } else {
-            match fit(m, candidates, selected, |h| h != g) {
-                Some(f) => f.coefficients,
-                None => return vec![f64::INFINITY; dof],
-            }
-        };
-        for j in 0..dof {
-            sse[j] += m.sse(g, j, &columns, &coefficients);
-            count[j] += m.rows[g][j];
-        }
-    }
-    sse.iter()
-        .zip(&count)
-        .map(|(s, &c)| s / c.max(1) as f64)
+    (0..m.xx.len())
+        .map(|g| {
+            let coefficients = if selected.is_empty() {
+                DVector::zeros(0)
+            } else {
+                fit(m, candidates, selected, |h| h != g)?.coefficients
+            };
+            Some(
+                (0..dof)
+                    .map(|j| m.sse(g, j, &columns, &coefficients))
+                    .collect(),
+            )
+        })
         .collect()
 }

@@ -85,6 +85,7 @@ mod alternatives;
 pub mod apply;
 mod band;
 mod candidate;
+mod companion;
 pub mod data;
 mod diagnosis;
 mod digits;
@@ -334,6 +335,17 @@ pub fn diagnose(
         selection = select(&moments, data.dof, &candidates, settings);
     }
     let (mut selected, mut notes) = (selection.selected, selection.notes);
+    // Pruning and the body swaps may have changed the selection since its
+    // last step.
+    companion::complete_friction(
+        &moments,
+        data.dof,
+        &candidates,
+        &mut selected,
+        &mut notes,
+        settings,
+    );
+    select::prune(&moments, &candidates, &mut selected, &mut notes, settings);
     drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
     let bias = |selected: &[usize], supported: &[supported::Supported]| {
         let width = selected

@@ -5,6 +5,7 @@
 use super::admit::{MASS_FACTOR, admits, levels_hold, physical, searched_threshold, significant};
 use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
+use super::companion::complete_friction;
 use super::fit::{fit, identifiability, pseudo_solve};
 use super::gain::{Gain, relative_gain};
 use super::heldout::{Scoring, cv_mse};
@@ -169,6 +170,9 @@ pub(super) fn select(
         ));
         selected = trial;
         current = mse;
+        if complete_friction(m, dof, candidates, &mut selected, &mut notes, settings) {
+            current = cv_mse(m, dof, candidates, &selected, Scoring::Fitted);
+        }
     }
     let dropped = prune(m, candidates, &mut selected, &mut notes, settings);
     refused.extend(dropped);
