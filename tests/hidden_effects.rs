@@ -3,7 +3,7 @@
 //! diagnosis runs at its defaults on 3 or 1 recordings of 20 s, at 1 kHz and
 //! logged at 100 Hz. The confusion table (true kind x named kind) and the
 //! parameter errors are printed (`cargo test --release hidden_effects --
-//! --nocapture`; docs/diagnosis.md's table comes from it) and asserted:
+//! --nocapture`; docs/diagnosis-measured.md's table comes from it) and asserted:
 //! every hidden effect named with its kind and place, nothing else named,
 //! every parameter within 15%, except the known weaknesses listed by
 //! [`known_weakness`] (printed, not asserted; docs/diagnosis.md).
