@@ -162,7 +162,10 @@ fn drop_unhelpful(
 ) {
     while let Some(position) = report::heldout_removals(m, candidates, selected)
         .iter()
-        .position(|&(removed, _)| removed <= 0.0)
+        .enumerate()
+        .position(|(k, &(removed, _))| {
+            removed <= 0.0 && !helps_the_rest(m, candidates, selected, k)
+        })
     {
         let dropped = selected.remove(position);
         notes.push(format!(
@@ -171,6 +174,34 @@ fn drop_unhelpful(
             label(&candidates[dropped])
         ));
     }
+}
+
+/// Whether the effect at `position` of `selected` lowers its joints'
+/// held-out MSE (applied columns) beside all the others. Counted in the
+/// order named, an effect can seem to remove nothing because one named
+/// after it does the work it needed: viscous friction named beside a
+/// joint's Coulomb friction before a payload that dominates the joint's
+/// residual (a Panda with friction on every joint and 0.8 kg at the
+/// flange: joint 4's held-out MSE 0.0018 with it in the final model,
+/// 0.0100 without it, and -0.009 of 15 "removed" where it was named).
+fn helps_the_rest(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    position: usize,
+) -> bool {
+    let dof = m.xx.first().map_or(0, Vec::len);
+    let mut rest = selected.to_vec();
+    rest.remove(position);
+    let (with, without) = (
+        cv_mse_per_joint(m, dof, candidates, selected),
+        cv_mse_per_joint(m, dof, candidates, &rest),
+    );
+    let joints: Vec<usize> = match candidates[selected[position]].joint {
+        Some(j) => vec![j],
+        None => (0..dof).collect(),
+    };
+    joints.iter().map(|&j| without[j] - with[j]).sum::<f64>() > 0.0
 }
 
 /// A torque offset and direction-dependent dry friction are the same torque
