@@ -43,6 +43,24 @@ pub(super) struct Candidate {
     pub(super) searched: usize,
 }
 
+/// A linear candidate on the first joint with one column (unit tests).
+#[cfg(test)]
+pub(super) fn linear(kind: Kind, column: DVector<f64>) -> Candidate {
+    Candidate {
+        kind,
+        joint: Some(0),
+        link: None,
+        modelled: [0.0; 10],
+        extent: f64::INFINITY,
+        names: vec!["value"],
+        columns: vec![column],
+        applied: None,
+        shape: Shape::Linear,
+        settings: Vec::new(),
+        searched: 1,
+    }
+}
+
 /// Global column indices of the selected candidates.
 pub(super) fn columns_of(candidates: &[Candidate], selected: &[usize]) -> Vec<usize> {
     let offsets: Vec<usize> = candidates

@@ -10,7 +10,7 @@
 use nalgebra::DVector;
 
 use super::candidate::{Candidate, Shape, label, width};
-use super::heldout::cv_mse_per_joint;
+use super::heldout::with_and_without;
 use super::kind::Kind;
 use super::moments::Moments;
 use super::report::half_widths;
@@ -102,17 +102,8 @@ fn indispensable(
     selected: &[usize],
     position: usize,
 ) -> bool {
-    let dof = m.xx.first().map_or(0, Vec::len);
-    let mut rest = selected.to_vec();
-    rest.remove(position);
-    let with = cv_mse_per_joint(m, dof, candidates, selected);
-    let without = cv_mse_per_joint(m, dof, candidates, &rest);
-    let joints: Vec<usize> = match candidates[selected[position]].joint {
-        Some(j) => vec![j],
-        None => (0..dof).collect(),
-    };
-    let total = |mse: &[f64]| joints.iter().map(|&j| mse[j]).sum::<f64>();
-    total(&without) >= 2.0 * total(&with)
+    let (with, without) = with_and_without(m, candidates, selected, position);
+    without >= 2.0 * with
 }
 
 /// Per named parameter, the bias the held check allows for: the largest
@@ -147,22 +138,7 @@ mod tests {
     use nalgebra::DVector;
 
     use super::*;
-
-    fn candidate(kind: Kind, column: DVector<f64>) -> Candidate {
-        Candidate {
-            kind,
-            joint: Some(0),
-            link: None,
-            modelled: [0.0; 10],
-            extent: f64::INFINITY,
-            names: vec!["value"],
-            columns: vec![column],
-            applied: None,
-            shape: Shape::Linear,
-            settings: Vec::new(),
-            searched: 1,
-        }
-    }
+    use crate::diagnose::candidate::linear as candidate;
 
     /// One joint whose residual is `offset` sin(q) + 0.3 qd plus noise,
     /// both named; what stays named after the held check with a bias that

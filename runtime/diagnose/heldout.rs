@@ -80,3 +80,27 @@ pub(super) fn cv_sse_by_group(
         })
         .collect()
 }
+
+/// The held-out MSE (generated model's columns) of the joints of the
+/// effect at `position` of `selected` (all joints for a link or data
+/// effect), summed: with the whole selection, and with that effect left
+/// out.
+pub(super) fn with_and_without(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    position: usize,
+) -> (f64, f64) {
+    let dof = m.xx.first().map_or(0, Vec::len);
+    let mut rest = selected.to_vec();
+    rest.remove(position);
+    let joints: Vec<usize> = match candidates[selected[position]].joint {
+        Some(j) => vec![j],
+        None => (0..dof).collect(),
+    };
+    let total = |mse: Vec<f64>| joints.iter().map(|&j| mse[j]).sum::<f64>();
+    (
+        total(cv_mse_per_joint(m, dof, candidates, selected)),
+        total(cv_mse_per_joint(m, dof, candidates, &rest)),
+    )
+}

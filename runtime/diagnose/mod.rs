@@ -190,18 +190,8 @@ fn helps_the_rest(
     selected: &[usize],
     position: usize,
 ) -> bool {
-    let dof = m.xx.first().map_or(0, Vec::len);
-    let mut rest = selected.to_vec();
-    rest.remove(position);
-    let (with, without) = (
-        cv_mse_per_joint(m, dof, candidates, selected),
-        cv_mse_per_joint(m, dof, candidates, &rest),
-    );
-    let joints: Vec<usize> = match candidates[selected[position]].joint {
-        Some(j) => vec![j],
-        None => (0..dof).collect(),
-    };
-    joints.iter().map(|&j| without[j] - with[j]).sum::<f64>() > 0.0
+    let (with, without) = heldout::with_and_without(m, candidates, selected, position);
+    without > with
 }
 
 /// A torque offset and direction-dependent dry friction are the same torque

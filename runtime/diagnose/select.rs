@@ -433,23 +433,8 @@ mod tests {
 
     use super::*;
     use crate::diagnose::alternatives::note;
+    use crate::diagnose::candidate::linear as candidate;
     use crate::diagnose::stacked::Stacked;
-
-    fn candidate(kind: Kind, column: DVector<f64>) -> Candidate {
-        Candidate {
-            kind,
-            joint: Some(0),
-            link: None,
-            modelled: [0.0; 10],
-            extent: f64::INFINITY,
-            names: vec!["value"],
-            columns: vec![column],
-            applied: None,
-            shape: Shape::Linear,
-            settings: Vec::new(),
-            searched: 1,
-        }
-    }
 
     /// One joint over 4 segments, residual 0.5 sin(q) plus noise; the
     /// candidates' columns are sin(q), sin(q) + a trace of cos(3q) and qd.

@@ -146,6 +146,22 @@ impl JointLimits {
     }
 }
 
+/// (q, qd, qdd) of `dof` joints from each joint's own.
+fn per_joint(
+    dof: usize,
+    joint: impl Fn(usize) -> (f64, f64, f64),
+) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
+    let (mut q, mut qd, mut qdd) = (
+        DVector::zeros(dof),
+        DVector::zeros(dof),
+        DVector::zeros(dof),
+    );
+    for j in 0..dof {
+        (q[j], qd[j], qdd[j]) = joint(j);
+    }
+    (q, qd, qdd)
+}
+
 fn check_len(what: &'static str, found: usize, dof: usize) -> Result<(), ReferenceError> {
     if found == dof {
         Ok(())
@@ -313,18 +329,12 @@ impl Reference for WaypointTrajectory {
     /// Before t = 0 and after the last segment the joints rest at the first or
     /// last waypoint. A NaN `t` yields NaN.
     fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
-        let dof = self.dof();
-        let (mut q, mut qd, mut qdd) = (
-            DVector::zeros(dof),
-            DVector::zeros(dof),
-            DVector::zeros(dof),
-        );
-        for (j, segments) in self.joints.iter().enumerate() {
+        per_joint(self.dof(), |j| {
+            let segments = &self.joints[j];
             // Last segment starting at or before t (the first one for t < 0).
             let idx = segments.partition_point(|s| s.start <= t).saturating_sub(1);
-            (q[j], qd[j], qdd[j]) = segments[idx].eval(t);
-        }
-        (q, qd, qdd)
+            segments[idx].eval(t)
+        })
     }
 }
 
@@ -485,16 +495,7 @@ impl Reference for ExcitationTrajectory {
 
     /// Defined (periodic) for every finite `t`.
     fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
-        let dof = self.dof();
-        let (mut q, mut qd, mut qdd) = (
-            DVector::zeros(dof),
-            DVector::zeros(dof),
-            DVector::zeros(dof),
-        );
-        for (j, joint) in self.joints.iter().enumerate() {
-            (q[j], qd[j], qdd[j]) = joint.eval(self.omega, t);
-        }
-        (q, qd, qdd)
+        per_joint(self.dof(), |j| self.joints[j].eval(self.omega, t))
     }
 }
 
