@@ -170,6 +170,25 @@ fn the_arm_refuses_a_flipped_sign_degrees_and_exchanged_joints() {
     }
 }
 
+/// Torques logged in mN m, or 2.5 times too large (a gear ratio applied
+/// twice), on every joint: each joint follows the model's torque times that
+/// much, which explains it. A heavy payload scales one joint, not all
+/// (below).
+#[test]
+fn the_arm_refuses_torques_in_other_units() {
+    let clean = record(ARM, &arm(), 10.0, 1);
+    for factor in [1000.0, 2.5] {
+        let scaled = clean.with_tau(clean.tau() * factor).unwrap();
+        assert_refused(
+            ARM,
+            &scaled,
+            Check::TorqueScale,
+            &[&[1], &[2], &[3]],
+            "not mN m",
+        );
+    }
+}
+
 #[test]
 fn the_arm_passes_a_heavy_payload_and_a_heavier_link() {
     // 2 kg: four times the arm's rated payload, more than its last link.

@@ -11,8 +11,9 @@
 //!   (with a tenth of its range to spare), before anything is fitted;
 //! - [`scale`]: the measured torque follows the model's with a positive
 //!   gain (it enters with at least half of it, three standard errors
-//!   clear, where the model predicts a sizeable torque), and the joint's
-//!   own friction resists the motion;
+//!   clear, where the model predicts a sizeable torque, and at most twice
+//!   it where that multiple explains the torque), and the joint's own
+//!   friction resists the motion;
 //! - [`relabel`]: no exchange of two joints' torque columns fits the rigid
 //!   body (free inertial parameters) much better than the recorded order.
 
@@ -47,6 +48,10 @@ pub enum Check {
     /// The measured torque does not follow the model's (`value`: the
     /// fitted gain, below 0.5).
     TorqueUnexplained,
+    /// The measured torque is the model's times a gain beyond 2 (`value`:
+    /// the fitted gain): other units (mN m), a current or a torque before
+    /// the gearbox.
+    TorqueScale,
     /// Two joints' torques fit the rigid body far better exchanged
     /// (`value`: the unexplained share exchanged over as recorded).
     SwappedJoints,
@@ -132,12 +137,17 @@ pub(super) fn torques(
     let mut findings: Vec<Finding> = swapped.iter().map(|e| e.finding()).collect();
     // A joint in an exchanged pair fails the gain check because of it.
     let exchanged = |j: usize| swapped.iter().any(|e| e.joints.contains(&(j + 1)));
+    // Other units scale every joint's torque alike.
+    let told: Vec<usize> = (0..data.dof).filter(|&j| gains[j].told(min_t)).collect();
+    let scaled = told.len() >= 2
+        && told.iter().all(|&j| gains[j].above(min_t))
+        && told.iter().any(|&j| gains[j].explains(data, j));
     findings.extend(
         gains
             .iter()
             .enumerate()
             .filter(|(j, _)| !exchanged(*j))
-            .filter_map(|(j, gain)| gain.finding(data, j, min_t, &hint)),
+            .filter_map(|(j, gain)| gain.finding(data, j, min_t, scaled, &hint)),
     );
     Sanity {
         model_torque_gain: gains.iter().map(|g| g.model).collect(),
