@@ -429,8 +429,6 @@ pub(super) fn admissible(candidates: &[Candidate], c: usize, selected: &[usize])
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::DVector;
-
     use super::*;
     use crate::diagnose::alternatives::note;
     use crate::diagnose::candidate::linear as candidate;
