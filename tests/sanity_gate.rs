@@ -170,6 +170,43 @@ fn the_arm_refuses_a_flipped_sign_degrees_and_exchanged_joints() {
     }
 }
 
+/// A time column in milliseconds, and velocities in deg/s beside angles in
+/// rad: the logged velocities are 1000 and 57 times the positions' rate.
+/// Refused before anything is fitted, whatever the torques say.
+#[test]
+fn the_arm_refuses_milliseconds_and_degrees_per_second() {
+    let clean = record(ARM, &arm(), 10.0, 1);
+    let in_ms = Trajectory::new(
+        clean.t().iter().map(|t| t * 1000.0).collect(),
+        clean.q().clone(),
+        clean.qd().clone(),
+        None,
+        clean.tau().clone(),
+    )
+    .unwrap();
+    let deg_per_s = Trajectory::new(
+        clean.t().to_vec(),
+        clean.q().clone(),
+        clean.qd().map(f64::to_degrees),
+        None,
+        clean.tau().clone(),
+    )
+    .unwrap();
+    for recording in [in_ms, deg_per_s] {
+        let refusal = match run(ARM, &recording) {
+            Ok(d) => panic!("not refused: {}", serde_json::to_string(&d.sanity).unwrap()),
+            Err(e) => e.downcast::<Refusal>().expect("a refusal"),
+        };
+        let rates: Vec<_> = refusal
+            .findings
+            .iter()
+            .filter(|f| f.check == Check::VelocityRate)
+            .collect();
+        assert_eq!(rates.len(), 1, "{refusal}");
+        assert!(rates[0].message.contains("milliseconds"), "{refusal}");
+    }
+}
+
 /// Torques logged in mN m, or 2.5 times too large (a gear ratio applied
 /// twice), on every joint: each joint follows the model's torque times that
 /// much, which explains it. A heavy payload scales one joint, not all

@@ -5,10 +5,11 @@
 //! effects and a wall of notes. When a check fails nothing is named and
 //! each finding says what to check ([`Refusal`]; `sdnn diagnose` exits 3).
 //!
-//! Three checks, each against a threshold a real missing effect does not
+//! Four checks, each against a threshold a real missing effect does not
 //! reach (docs/diagnosis.md, "The sanity gate"):
 //! - [`positions`]: every joint stays within its description's limits
-//!   (with a tenth of its range to spare), before anything is fitted;
+//!   (with a tenth of its range to spare), and [`rates`]: the logged
+//!   velocities are the positions' rate, before anything is fitted;
 //! - [`scale`]: the measured torque follows the model's with a positive
 //!   gain (it enters with at least half of it, three standard errors
 //!   clear, where the model predicts a sizeable torque, and at most twice
@@ -18,6 +19,7 @@
 //!   body (free inertial parameters) much better than the recorded order.
 
 mod positions;
+mod rates;
 mod relabel;
 mod scale;
 
@@ -40,6 +42,10 @@ pub enum Check {
     /// Positions beyond the limits that fit them once read as degrees
     /// (`value`: the largest |q| as recorded).
     Degrees,
+    /// The logged velocities are many times the positions' rate of
+    /// change (`value`: their RMS ratio, median over the moving joints): a
+    /// time column in milliseconds, velocities in deg/s.
+    VelocityRate,
     /// The measured torque runs against the model's, or its friction
     /// pushes the motion (`value`: the fitted gain of the model's torque,
     /// near -1 unless the model's torque is too small to tell; null where
@@ -113,10 +119,12 @@ pub struct Sanity {
     pub findings: Vec<Finding>,
 }
 
-/// The findings of the position check (on the positions as logged,
-/// before preprocessing).
+/// The findings of the position and velocity checks (on the recordings as
+/// logged, before preprocessing).
 pub(super) fn positions(model: &dyn Dynamics, recordings: &[Trajectory]) -> Vec<Finding> {
-    positions::findings(model, recordings)
+    let mut found = positions::findings(model, recordings);
+    found.extend(rates::findings(recordings));
+    found
 }
 
 /// The torque checks on the stacked data: whether the torques run against
