@@ -367,9 +367,18 @@ pub(super) fn check_magnitudes(
                 line: lines[row],
                 column: layout.names[c].clone(),
                 value: columns[c][row],
-                problem: format!(
-                    "beyond any arm (|value| <= {limit:e}, {unit} and its derivatives); a logging fault?"
-                ),
+                problem: if Some(c) == layout.time {
+                    format!(
+                        "a time beyond any recording (|t| <= {limit:e} s): if it is a clock's \
+                         (Unix time), subtract the first sample's (t counts seconds from the \
+                         recording's start)"
+                    )
+                } else {
+                    format!(
+                        "beyond any arm (|value| <= {limit:e}, {unit} and its derivatives); a \
+                         logging fault?"
+                    )
+                },
             });
         }
     }

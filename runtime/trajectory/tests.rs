@@ -124,6 +124,9 @@ fn rejects_bad_time() {
     };
     let msg = read_err("few", GOOD, &few);
     assert!(msg.contains("3 samples, at least 10"), "{msg}");
+    let epoch = GOOD.replace("\n0.0", "\n1764160000.0");
+    let msg = read_err("epoch", &epoch, &ReadOptions::default());
+    assert!(msg.contains("line 2") && msg.contains("Unix time"), "{msg}");
 }
 
 #[test]
