@@ -91,6 +91,35 @@ pub(super) fn with_and_without(
     selected: &[usize],
     position: usize,
 ) -> (f64, f64) {
+    let (joints, with, without) = per_joint_with_and_without(m, candidates, selected, position);
+    let total = |mse: &[f64]| joints.iter().map(|&j| mse[j]).sum::<f64>();
+    (total(&with), total(&without))
+}
+
+/// The largest factor by which leaving the effect at `position` out of
+/// `selected` raises the held-out MSE (generated model's columns) of one
+/// of its joints (all joints for a link or data effect).
+pub(super) fn worst_rise(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    position: usize,
+) -> f64 {
+    let (joints, with, without) = per_joint_with_and_without(m, candidates, selected, position);
+    joints
+        .iter()
+        .map(|&j| without[j] / with[j])
+        .fold(0.0, f64::max)
+}
+
+/// The joints of the effect at `position` of `selected`, and every joint's
+/// held-out MSE with the whole selection and with that effect left out.
+fn per_joint_with_and_without(
+    m: &Moments,
+    candidates: &[Candidate],
+    selected: &[usize],
+    position: usize,
+) -> (Vec<usize>, Vec<f64>, Vec<f64>) {
     let dof = m.xx.first().map_or(0, Vec::len);
     let mut rest = selected.to_vec();
     rest.remove(position);
@@ -98,9 +127,9 @@ pub(super) fn with_and_without(
         Some(j) => vec![j],
         None => (0..dof).collect(),
     };
-    let total = |mse: Vec<f64>| joints.iter().map(|&j| mse[j]).sum::<f64>();
     (
-        total(cv_mse_per_joint(m, dof, candidates, selected)),
-        total(cv_mse_per_joint(m, dof, candidates, &rest)),
+        joints,
+        cv_mse_per_joint(m, dof, candidates, selected),
+        cv_mse_per_joint(m, dof, candidates, &rest),
     )
 }

@@ -89,6 +89,7 @@ mod companion;
 pub mod data;
 mod diagnosis;
 mod digits;
+mod dry;
 mod fit;
 mod gain;
 mod held;
@@ -106,6 +107,7 @@ mod search;
 mod select;
 mod settings;
 mod shape;
+mod smooth;
 mod stacked;
 mod stribeck;
 mod supported;
@@ -131,7 +133,6 @@ pub use sanity::{Check, Exchange, Finding, Refusal, Sanity};
 use select::{body_identifiable, mass_identifiable, select};
 pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
 pub use stacked::Layout;
-use stacked::Stacked;
 pub use unconstrained::Unconstrained;
 pub use unexplained::{RegimeShare, Unexplained};
 
@@ -192,74 +193,6 @@ fn helps_the_rest(
 ) -> bool {
     let (with, without) = heldout::with_and_without(m, candidates, selected, position);
     without > with
-}
-
-/// A torque offset and direction-dependent dry friction are the same torque
-/// while the joint moves; only samples at rest tell them apart, and there
-/// the friction is static or follows the plant's own law near zero speed,
-/// which no column here knows. Where one is named on a joint with dry
-/// friction and the other is not, the other is listed as ambiguous with it
-/// (named candidate, other candidate) and a note says how many samples
-/// could tell.
-fn offset_or_asymmetry(
-    data: &Stacked,
-    candidates: &[Candidate],
-    selected: &[usize],
-    notes: &mut Vec<String>,
-) -> Vec<(usize, usize)> {
-    let find = |kind: Kind, j: usize| {
-        candidates
-            .iter()
-            .position(|c| c.kind == kind && c.joint == Some(j))
-    };
-    let named = |kind: Kind, j: usize| {
-        selected
-            .iter()
-            .any(|&c| candidates[c].kind == kind && candidates[c].joint == Some(j))
-    };
-    let mut pairs = Vec::new();
-    for j in 0..data.dof {
-        let (offset, asymmetry) = (
-            named(Kind::TorqueOffset, j),
-            named(Kind::CoulombAsymmetry, j),
-        );
-        let (Some(o), Some(a)) = (find(Kind::TorqueOffset, j), find(Kind::CoulombAsymmetry, j))
-        else {
-            continue;
-        };
-        let dry = &candidates[a];
-        let modelled =
-            matches!(dry.shape, Shape::Asymmetry { modelled_coulomb } if modelled_coulomb > 0.0);
-        if offset == asymmetry || !(modelled || named(Kind::CoulombFriction, j)) {
-            continue;
-        }
-        // The asymmetry's column is 1 while moving, 0 at rest (filtered).
-        let rows = data.rows_of(j);
-        let count = rows.clone().count().max(1) as f64;
-        let resting = rows.filter(|&r| dry.columns[0][r] < 0.5).count() as f64 / count;
-        pairs.push(if offset { (o, a) } else { (a, o) });
-        let (this, other) = if offset {
-            (
-                "a torque offset",
-                "direction-dependent dry friction (coulomb_asymmetry)",
-            )
-        } else {
-            ("direction-dependent dry friction", "a torque offset")
-        };
-        notes.push(format!(
-            "joint {}: {this} and {other} are the same torque while the joint moves; only the \
-             {:.0}% of samples at rest tell them apart, so {other} fits these data {}: record \
-             motions that rest to tell",
-            j + 1,
-            100.0 * resting,
-            if resting < 0.2 {
-                "almost as well"
-            } else {
-                "less well here, but how friction behaves near zero speed decides that"
-            }
-        ));
-    }
-    pairs
 }
 
 /// Fits the first moment alone (the mass held as modelled) for these body
@@ -384,6 +317,15 @@ pub fn diagnose(
         let timing = supported::timing_shift(&moments, &candidates, s);
         held::bias_elsewhere(&candidates, s, &supported, timing)
     });
+    smooth::drop_friction_traces(
+        &data,
+        &moments,
+        &candidates,
+        &mut selected,
+        &mut notes,
+        settings,
+    );
+    dry::settle_by_rest(&data, &moments, &candidates, &mut selected, &mut notes);
     let motion = reversals::Motion {
         candidates: &candidates,
         selected: &selected,
@@ -400,7 +342,7 @@ pub fn diagnose(
             .iter()
             .map(|a| alternatives::note(&candidates, a)),
     );
-    let dry_pairs = offset_or_asymmetry(&data, &candidates, &selected, &mut notes);
+    let dry_pairs = dry::offset_or_asymmetry(&data, &candidates, &selected, &mut notes);
     let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
     let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
     let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);

@@ -1,0 +1,234 @@
+//! Whether a named effect that is not friction holds when the friction of
+//! the joints whose dry friction is named may follow a smoother law than
+//! the model's sign(qd) and viscous terms. A plant's friction that rounds
+//! off near zero speed (a sigmoid law: the Panda's, as Gaz et al. identify
+//! it) leaves a velocity-shaped residual that a 0.4% torque scale, a 0.04
+//! degree tilt or a link's mass fits significantly. Fitted beside a few
+//! smooth functions of each such joint's velocity, a real tilt, scale,
+//! payload or offset keeps its significance (none of them is a function of
+//! the velocity alone); such a trace does not.
+
+use super::admit::significant;
+use super::candidate::{Candidate, Shape, label};
+use super::fit::fit;
+use super::heldout::worst_rise;
+use super::kind::Kind;
+use super::moments::Moments;
+use super::settings::Settings;
+use super::stacked::Stacked;
+
+/// The generic features ([`super::stacked::GENERIC_FEATURES`]) that shape a
+/// smoother friction law: qd |qd| and sign(qd) exp(-|qd| / 0.1 rad/s).
+const SMOOTH_FEATURES: [usize; 2] = [1, 3];
+
+/// An effect without which some joint's held-out MSE at least doubles is
+/// named whatever its significance beside the smooth friction: the model
+/// needs it, whatever part of it the friction's shape may be (as the held
+/// check's rule, `super::held`).
+const INDISPENSABLE: f64 = 2.0;
+
+/// Drops each named effect other than friction that is no longer
+/// significant beside the smooth friction columns of every joint with
+/// named dry friction, with a note.
+pub(super) fn drop_friction_traces(
+    data: &Stacked,
+    moments: &Moments,
+    candidates: &[Candidate],
+    selected: &mut Vec<usize>,
+    notes: &mut Vec<String>,
+    settings: Settings,
+) {
+    let joints = friction_joints(data.dof, candidates, selected);
+    let checked: Vec<usize> = (0..selected.len())
+        .filter(|&p| !is_friction(candidates[selected[p]].kind))
+        .collect();
+    if joints.is_empty() || checked.is_empty() {
+        return;
+    }
+    // The named effects, then the smooth friction: one list the moments hold.
+    let mut list: Vec<Candidate> = selected.iter().map(|&c| candidates[c].clone()).collect();
+    let named = list.len();
+    list.extend(smooth_friction(data, candidates, selected, &joints));
+    let m = Moments::new(data, &list);
+    let smooth: Vec<usize> = (named..list.len()).collect();
+    let mut traces = Vec::new();
+    for p in checked {
+        if holds(&m, &list, named, &smooth, p, settings) {
+            continue;
+        }
+        let rise = worst_rise(moments, candidates, selected, p);
+        if rise < INDISPENSABLE {
+            traces.push(p);
+            continue;
+        }
+        notes.push(format!(
+            "{}: not significant beside a smoother friction law on the joints with dry friction, \
+             but without it a joint's held-out MSE would be {rise:.1} times as large: named; part \
+             of what it explains may be how the friction rounds off near zero speed",
+            label(&candidates[selected[p]])
+        ));
+    }
+    for &p in traces.iter().rev() {
+        let dropped = selected.remove(p);
+        notes.push(format!(
+            "{}: significant in the fit, but not beside a smoother friction law on the joints \
+             with dry friction (qd |qd| and sign(qd) exp(-|qd| / 0.1 rad/s)): what it explains \
+             is how the friction rounds off near zero speed, which the model's sign(qd) cannot \
+             follow; not named",
+            label(&candidates[dropped])
+        ));
+    }
+}
+
+/// The joints whose Coulomb friction is named.
+fn friction_joints(dof: usize, candidates: &[Candidate], selected: &[usize]) -> Vec<usize> {
+    (0..dof)
+        .filter(|&j| {
+            selected.iter().any(|&c| {
+                candidates[c].kind == Kind::CoulombFriction && candidates[c].joint == Some(j)
+            })
+        })
+        .collect()
+}
+
+/// The smooth friction of `joints`: their [`SMOOTH_FEATURES`] columns and,
+/// where it is not named, their direction-dependent dry friction (the
+/// round-off of a law whose levels differ by direction).
+fn smooth_friction<'a>(
+    data: &'a Stacked,
+    candidates: &'a [Candidate],
+    selected: &'a [usize],
+    joints: &'a [usize],
+) -> impl Iterator<Item = Candidate> + 'a {
+    let named = move |c: &Candidate| {
+        selected
+            .iter()
+            .any(|&s| candidates[s].kind == c.kind && candidates[s].joint == c.joint)
+    };
+    let asymmetries = candidates.iter().filter(move |c| {
+        c.kind == Kind::CoulombAsymmetry
+            && c.joint.is_some_and(|j| joints.contains(&j))
+            && !named(c)
+    });
+    joints
+        .iter()
+        .flat_map(move |&j| smooth_columns(data, j))
+        .chain(asymmetries.cloned())
+}
+
+/// Whether the named effect at `position` is significant fitted after the
+/// other named effects and the smooth friction columns.
+fn holds(
+    m: &Moments,
+    list: &[Candidate],
+    named: usize,
+    smooth: &[usize],
+    position: usize,
+    settings: Settings,
+) -> bool {
+    // An offset and direction-dependent friction on its own joint are the
+    // same torque while the joint moves: an ambiguity reported as one.
+    let checked = &list[position];
+    let same_torque = |c: &Candidate| {
+        checked.kind == Kind::TorqueOffset
+            && c.kind == Kind::CoulombAsymmetry
+            && c.joint == checked.joint
+    };
+    let trial: Vec<usize> = (0..named)
+        .filter(|&p| p != position)
+        .chain(smooth.iter().copied().filter(|&s| !same_torque(&list[s])))
+        .chain([position])
+        .collect();
+    // A fit that fails says nothing against the effect.
+    let Some(full) = fit(m, list, &trial, |_| true) else {
+        return true;
+    };
+    significant(m, list, &trial, &full, settings.min_t).is_some()
+}
+
+fn is_friction(kind: Kind) -> bool {
+    matches!(
+        kind,
+        Kind::ViscousFriction
+            | Kind::CoulombFriction
+            | Kind::CoulombAsymmetry
+            | Kind::StribeckFriction
+    )
+}
+
+/// The smooth friction columns of joint `j`: linear candidates on its rows.
+fn smooth_columns(data: &Stacked, j: usize) -> impl Iterator<Item = Candidate> + '_ {
+    SMOOTH_FEATURES.into_iter().map(move |f| {
+        let column =
+            data.generic[f].map_with_location(|r, _, v| if r % data.dof == j { v } else { 0.0 });
+        Candidate {
+            kind: Kind::ViscousFriction,
+            joint: Some(j),
+            link: None,
+            modelled: [0.0; 10],
+            extent: f64::INFINITY,
+            names: vec!["smooth"],
+            columns: vec![column],
+            applied: None,
+            shape: Shape::Linear,
+            settings: Vec::new(),
+            searched: 1,
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::DVector;
+
+    use super::*;
+    use crate::diagnose::candidate::linear as candidate;
+
+    /// One joint with friction 0.3 sign(qd) - 0.1 sign(qd) exp(-|qd| / 0.1)
+    /// (a law that rounds off near rest) plus `real` sin(q) and noise;
+    /// named: Coulomb friction and a torque scale whose column is sin(q)
+    /// plus the round-off's shape. What stays named after the check.
+    fn named_after_check(real: f64) -> Vec<Kind> {
+        let noise =
+            |q: f64, qd: f64| 0.01 * ((q * 12.9898 + qd * 78.233).sin() * 43758.5453).fract();
+        let round_off = |qd: f64| qd.signum() * (-qd.abs() / 0.1).exp();
+        let (mut data, q, qd) = crate::diagnose::search::sweep(|q, qd| {
+            0.3 * qd.signum() - 0.1 * round_off(qd) + real * q.sin() + noise(q, qd)
+        });
+        data.generic = vec![DVector::zeros(qd.len()); 4];
+        data.generic[1] = qd.map(|v| v * v.abs());
+        data.generic[3] = qd.map(round_off);
+        let candidates = vec![
+            candidate(Kind::CoulombFriction, qd.map(f64::signum)),
+            candidate(
+                Kind::TorqueScale,
+                DVector::from_fn(q.len(), |r, _| q[r].sin() + round_off(qd[r])),
+            ),
+        ];
+        let mut selected = vec![0, 1];
+        let mut notes = Vec::new();
+        let settings = Settings::default();
+        drop_friction_traces(
+            &data,
+            &Moments::new(&data, &candidates),
+            &candidates,
+            &mut selected,
+            &mut notes,
+            settings,
+        );
+        selected.iter().map(|&c| candidates[c].kind).collect()
+    }
+
+    #[test]
+    fn an_effect_that_fits_only_the_friction_round_off_is_dropped() {
+        assert_eq!(named_after_check(0.0), vec![Kind::CoulombFriction]);
+    }
+
+    #[test]
+    fn an_effect_with_its_own_signal_stays() {
+        assert_eq!(
+            named_after_check(0.05),
+            vec![Kind::CoulombFriction, Kind::TorqueScale]
+        );
+    }
+}
