@@ -4,9 +4,13 @@
 //! off near zero speed (a sigmoid law: the Panda's, as Gaz et al. identify
 //! it) leaves a velocity-shaped residual that a 0.4% torque scale, a 0.04
 //! degree tilt or a link's mass fits significantly. Fitted beside a few
-//! smooth functions of each such joint's velocity, a real tilt, scale,
-//! payload or offset keeps its significance (none of them is a function of
-//! the velocity alone); such a trace does not.
+//! smooth functions of each such joint's velocity and the rate of its
+//! Coulomb column (the flip's timing), a real tilt, scale, payload, offset
+//! or delay keeps its significance (none of them is a function of the
+//! velocity alone; a delay shifts the rigid-body torque too); such a trace
+//! does not.
+
+use nalgebra::DVector;
 
 use super::admit::significant;
 use super::candidate::{Candidate, Shape, label};
@@ -72,9 +76,9 @@ pub(super) fn drop_friction_traces(
         let dropped = selected.remove(p);
         notes.push(format!(
             "{}: significant in the fit, but not beside a smoother friction law on the joints \
-             with dry friction (qd |qd| and sign(qd) exp(-|qd| / 0.1 rad/s)): what it explains \
-             is how the friction rounds off near zero speed, which the model's sign(qd) cannot \
-             follow; not named",
+             with dry friction (qd |qd|, sign(qd) exp(-|qd| / 0.1 rad/s), the friction's flip \
+             a moment earlier or later): what it explains is how the friction changes near zero \
+             speed, which the model's sign(qd) cannot follow; not named",
             label(&candidates[dropped])
         ));
     }
@@ -91,9 +95,12 @@ fn friction_joints(dof: usize, candidates: &[Candidate], selected: &[usize]) -> 
         .collect()
 }
 
-/// The smooth friction of `joints`: their [`SMOOTH_FEATURES`] columns and,
-/// where it is not named, their direction-dependent dry friction (the
-/// round-off of a law whose levels differ by direction).
+/// The smooth friction of `joints`: their [`SMOOTH_FEATURES`] columns,
+/// where it is not named their direction-dependent dry friction (the
+/// round-off of a law whose levels differ by direction), and the rate of
+/// their Coulomb column (its flip a moment earlier or later than the
+/// measured velocity's sign says, which a torque delay would otherwise
+/// fit: a real delay shifts the rigid-body torque too).
 fn smooth_friction<'a>(
     data: &'a Stacked,
     candidates: &'a [Candidate],
@@ -110,10 +117,29 @@ fn smooth_friction<'a>(
             && c.joint.is_some_and(|j| joints.contains(&j))
             && !named(c)
     });
+    let timing = joints.iter().filter_map(move |&j| {
+        let coulomb = candidates
+            .iter()
+            .find(|c| c.kind == Kind::CoulombFriction && c.joint == Some(j))?;
+        Some(nuisance(j, rate_within_groups(data, &coulomb.columns[0])))
+    });
     joints
         .iter()
         .flat_map(move |&j| smooth_columns(data, j))
         .chain(asymmetries.cloned())
+        .chain(timing)
+}
+
+/// The rate of `column` along each joint's samples (central differences
+/// within a segment, zero at its ends), per sample period.
+fn rate_within_groups(data: &Stacked, column: &DVector<f64>) -> DVector<f64> {
+    let (n, len) = (data.dof, column.len());
+    DVector::from_fn(len, |r, _| {
+        if r < n || r + n >= len || data.group[r - n] != data.group[r + n] {
+            return 0.0;
+        }
+        (column[r + n] - column[r - n]) / 2.0
+    })
 }
 
 /// Whether the named effect at `position` is significant fitted after the
@@ -161,26 +187,29 @@ fn smooth_columns(data: &Stacked, j: usize) -> impl Iterator<Item = Candidate> +
     SMOOTH_FEATURES.into_iter().map(move |f| {
         let column =
             data.generic[f].map_with_location(|r, _, v| if r % data.dof == j { v } else { 0.0 });
-        Candidate {
-            kind: Kind::ViscousFriction,
-            joint: Some(j),
-            link: None,
-            modelled: [0.0; 10],
-            extent: f64::INFINITY,
-            names: vec!["smooth"],
-            columns: vec![column],
-            applied: None,
-            shape: Shape::Linear,
-            settings: Vec::new(),
-            searched: 1,
-        }
+        nuisance(j, column)
     })
+}
+
+/// A column on joint `j` fitted beside the named effects, never named.
+fn nuisance(j: usize, column: DVector<f64>) -> Candidate {
+    Candidate {
+        kind: Kind::ViscousFriction,
+        joint: Some(j),
+        link: None,
+        modelled: [0.0; 10],
+        extent: f64::INFINITY,
+        names: vec!["smooth"],
+        columns: vec![column],
+        applied: None,
+        shape: Shape::Linear,
+        settings: Vec::new(),
+        searched: 1,
+    }
 }
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::DVector;
-
     use super::*;
     use crate::diagnose::candidate::linear as candidate;
 
@@ -217,6 +246,48 @@ mod tests {
             settings,
         );
         selected.iter().map(|&c| candidates[c].kind).collect()
+    }
+
+    /// One joint with Coulomb friction 0.3 whose flip the sign of the
+    /// velocity places a moment late, plus `real` times a rigid-body
+    /// torque's rate; named: Coulomb friction and a torque delay whose
+    /// column holds both rates. What stays named after the check.
+    fn timing_after_check(real: f64) -> Vec<Kind> {
+        let (data, q, qd) = crate::diagnose::search::sweep(|_, _| 0.0);
+        let sign = qd.map(f64::signum);
+        let flip = rate_within_groups(&data, &sign);
+        let rigid = DVector::from_fn(q.len(), |r, _| q[r].cos() * qd[r]);
+        let mut data = data;
+        data.residual = DVector::from_fn(q.len(), |r, _| {
+            0.3 * sign[r] + 0.05 * flip[r] + real * rigid[r] + 1e-3 * (r as f64 * 0.7).sin()
+        });
+        data.generic = vec![DVector::zeros(q.len()); 4];
+        data.generic[1] = qd.map(|v| v * v.abs());
+        data.generic[3] = qd.map(|v| v.signum() * (-v.abs() / 0.1).exp());
+        let candidates = vec![
+            candidate(Kind::CoulombFriction, sign),
+            candidate(Kind::TorqueDelay, flip + rigid),
+        ];
+        let (mut selected, mut notes) = (vec![0, 1], Vec::new());
+        let m = Moments::new(&data, &candidates);
+        drop_friction_traces(
+            &data,
+            &m,
+            &candidates,
+            &mut selected,
+            &mut notes,
+            Settings::default(),
+        );
+        selected.iter().map(|&c| candidates[c].kind).collect()
+    }
+
+    #[test]
+    fn a_delay_that_fits_only_the_friction_flip_is_dropped() {
+        assert_eq!(timing_after_check(0.0), vec![Kind::CoulombFriction]);
+        assert_eq!(
+            timing_after_check(0.05),
+            vec![Kind::CoulombFriction, Kind::TorqueDelay]
+        );
     }
 
     #[test]
