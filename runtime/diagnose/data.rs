@@ -219,6 +219,7 @@ pub(super) fn stack(
         rest: at_rest,
         modelled_ripple: super::modelled::ripple_cycles(&super::modelled::joint_effects(model)),
         ripple_given: reversal.map(|r| r.ripple.clone()),
+        only: reversal.map(|r| r.places.clone()),
     };
     let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout, kept))

@@ -147,9 +147,9 @@ pub(super) fn stribeck(
         return Ok(found);
     };
     let needs = Needs::of(
+        (motion.candidates, motion.selected),
         model.dof(),
-        motion.candidates,
-        motion.selected,
+        joints,
         &band_pipeline,
     );
     let data = (model, recordings);
