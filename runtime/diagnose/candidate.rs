@@ -110,10 +110,9 @@ pub(super) struct Columns {
     /// The longest sample period of the raw recordings, s.
     pub(super) sample_period: f64,
     /// Per Stribeck velocity of `search::stribeck_velocities` the fitted
-    /// Stribeck column (moving sign) twice, as fitted and as scored (the
-    /// reversal stage scores what the physics explains); empty at the
-    /// motion stage.
-    pub(super) stribeck: Vec<(DVector<f64>, DVector<f64>)>,
+    /// Stribeck column (moving sign), also the scored one (the reversal
+    /// stage scores what the physics explains); empty at the motion stage.
+    pub(super) stribeck: Vec<DVector<f64>>,
     /// Per joint the speed below which it counts as at rest (the largest
     /// over the recordings), rad/s.
     pub(super) rest: Vec<f64>,
@@ -238,9 +237,10 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             false => None,
         };
         if let Some((k, velocity, searched)) = found {
-            let (fitted, applied) = &stribeck[k];
+            // Scored as fitted (see `Columns::stribeck`).
+            let fitted = &stribeck[k];
             list.push(Candidate {
-                applied: Some(own(j, &|r| applied[r])),
+                applied: Some(own(j, &|r| fitted[r])),
                 settings: vec![("velocity", velocity)],
                 searched,
                 ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])

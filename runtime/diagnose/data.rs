@@ -215,7 +215,7 @@ pub(super) fn stack(
         measured_rate: DVector::from_vec(all.measured_rate),
         coulomb_levels: coulomb_levels(model),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
-        stribeck: stribeck_pairs(all.stribeck),
+        stribeck: all.stribeck.into_iter().map(DVector::from_vec).collect(),
         rest: at_rest,
         modelled_ripple: super::modelled::ripple_cycles(&super::modelled::joint_effects(model)),
         ripple_given: reversal.map(|r| r.ripple.clone()),
@@ -311,20 +311,6 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
     durations
         .iter()
         .map(|d| ((d / length).round() as usize).max(1))
-        .collect()
-}
-
-/// The stacked Stribeck columns as (fitted, applied) pairs per velocity.
-/// The reversal stage scores the fitted columns only (it names what the
-/// physics explains; the report says how the generated model applies it),
-/// so both are the fitted one.
-fn stribeck_pairs(columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
-    columns
-        .into_iter()
-        .map(|f| {
-            let f = DVector::from_vec(f);
-            (f.clone(), f)
-        })
         .collect()
 }
 
