@@ -4,7 +4,7 @@ use nalgebra::{DVector, Vector3};
 
 use super::band::{self, Band, Needs, Stage};
 use super::candidate::{Candidate, Columns, Shape, candidates};
-use super::produce::{Inputs, Keep, produce};
+use super::produce::{Inputs, Keep, RAW_BUDGET_BYTES, produce};
 use super::rows::{MOVING, Rows, Tilted};
 use super::settings::Settings;
 use super::stacked::{Layout, Link, Stacked};
@@ -171,6 +171,9 @@ pub(super) fn stack(
             (Stage::Reversals, _) => all.extend(&this),
         }
     }
+    // The raw-rate memory is not needed again: freed before the candidates'
+    // columns are built.
+    drop(raw);
     let counts = match settings.segments {
         Some(k) => vec![k; durations.len()],
         None => segment_counts(&durations),
@@ -260,7 +263,8 @@ fn recording_rows(
             dt,
             samples: &samples,
         };
-        let bad = produce(&mut rows, &template.dry_signals(), &inputs, &keep, memory)?;
+        let signals = template.dry_signals();
+        let bad = produce(&mut rows, &signals, &inputs, &keep, (memory, RAW_BUDGET_BYTES))?;
         return Ok((rows, band.rest, (samples, dt), bad));
     }
     // Parallel filtering (Butterworth): the whole equation tau = Y theta
@@ -291,7 +295,8 @@ fn recording_rows(
         dt,
         samples: &samples,
     };
-    let bad = produce(&mut rows, &template.signals(), &inputs, &keep, memory)?;
+    let signals = template.signals();
+    let bad = produce(&mut rows, &signals, &inputs, &keep, (memory, RAW_BUDGET_BYTES))?;
     Ok((rows, band.rest, (samples, dt), bad))
 }
 
