@@ -119,7 +119,6 @@ pub(super) fn stack(
     // memory is paid again in page faults.
     let mut raw = Vec::new();
     let template = Rows::with_columns(n, 0, (stage, bodies));
-    let mut all = Rows::with_columns(n, 0, (stage, bodies));
     let (mut durations, mut sample_counts) = (Vec::new(), Vec::new());
     let mut at_rest = vec![0.0_f64; n];
     let mut trimmed = 0;
@@ -160,20 +159,17 @@ pub(super) fn stack(
             Some(motion) => motion.with_dry(rows, (bodies, tilted.is_some())),
             None => rows,
         };
-        // Only the motion stage's rows are asked for again (by the
-        // reversal stage's pass at the same pipeline).
-        match (stage, g) {
-            (Stage::Motion, _) => {
-                all.extend(&this);
-                kept.push(this);
-            }
-            (Stage::Reversals, 0) => all = this,
-            (Stage::Reversals, _) => all.extend(&this),
-        }
+        kept.push(this);
     }
     // The raw-rate memory is not needed again: freed before the candidates'
     // columns are built.
     drop(raw);
+    // Only the motion stage's rows are asked for again (by the reversal
+    // stage's pass at the same pipeline).
+    let all = template.concat(&mut kept, stage == Stage::Reversals);
+    if stage == Stage::Reversals {
+        kept.clear();
+    }
     let counts = match settings.segments {
         Some(k) => vec![k; durations.len()],
         None => segment_counts(&durations),
@@ -264,7 +260,13 @@ fn recording_rows(
             samples: &samples,
         };
         let signals = template.dry_signals();
-        let bad = produce(&mut rows, &signals, &inputs, &keep, (memory, RAW_BUDGET_BYTES))?;
+        let bad = produce(
+            &mut rows,
+            &signals,
+            &inputs,
+            &keep,
+            (memory, RAW_BUDGET_BYTES),
+        )?;
         return Ok((rows, band.rest, (samples, dt), bad));
     }
     // Parallel filtering (Butterworth): the whole equation tau = Y theta
@@ -296,7 +298,13 @@ fn recording_rows(
         samples: &samples,
     };
     let signals = template.signals();
-    let bad = produce(&mut rows, &signals, &inputs, &keep, (memory, RAW_BUDGET_BYTES))?;
+    let bad = produce(
+        &mut rows,
+        &signals,
+        &inputs,
+        &keep,
+        (memory, RAW_BUDGET_BYTES),
+    )?;
     Ok((rows, band.rest, (samples, dt), bad))
 }
 

@@ -408,7 +408,13 @@ mod tests {
         };
         let mut rows = Rows::with_columns(3, 0, (stage, true));
         let signals = rows.signals();
-        let bad = produce(&mut rows, &signals, &inputs, &keep, (&mut Vec::new(), budget));
+        let bad = produce(
+            &mut rows,
+            &signals,
+            &inputs,
+            &keep,
+            (&mut Vec::new(), budget),
+        );
         assert_eq!(bad.unwrap(), None);
         rows
     }
@@ -448,7 +454,10 @@ mod tests {
         };
         let expected = (50..SAMPLES - 50).step_by(10).map(|s| filtered[s]);
         let kept = rows.signal_mut(signal).iter().skip(j).step_by(3).copied();
-        (bits(&expected.collect::<Vec<_>>()), bits(&kept.collect::<Vec<_>>()))
+        (
+            bits(&expected.collect::<Vec<_>>()),
+            bits(&kept.collect::<Vec<_>>()),
+        )
     }
 
     #[test]
@@ -466,7 +475,10 @@ mod tests {
         let v = stribeck_velocities()[9];
         for j in 0..3 {
             let checks: [(Signal, Box<dyn Fn(usize, usize) -> f64>); 5] = [
-                (Signal::Residual, Box::new(|s, i| traj.tau()[(s, i)] - predicted[(s, i)])),
+                (
+                    Signal::Residual,
+                    Box::new(|s, i| traj.tau()[(s, i)] - predicted[(s, i)]),
+                ),
                 (Signal::Own(3), Box::new(|_, _| 1.0)),
                 (Signal::Inertial(17), Box::new(|s, i| regressor(s, i, 17))),
                 (Signal::Qd, Box::new(|s, i| traj.qd()[(s, i)])),

@@ -131,12 +131,23 @@ impl Rows {
         self.residual.len()
     }
 
-    /// Appends every signal of `other` (the same columns).
-    pub(super) fn extend(&mut self, other: &Rows) {
+    /// The rows of `parts` (with the same columns as `self`, which is
+    /// filled) one after the other, each column allocated once at its
+    /// length. With `consume`, each part's column is freed once copied: at
+    /// most one signal's columns are in memory twice.
+    pub(super) fn concat(mut self, parts: &mut [Rows], consume: bool) -> Rows {
         for signal in self.signals() {
-            let from = other.signal(signal);
-            self.signal_mut(signal).extend_from_slice(from);
+            let length = parts.iter().map(|p| p.signal(signal).len()).sum();
+            let mut column = Vec::with_capacity(length);
+            for part in parts.iter_mut() {
+                column.extend_from_slice(part.signal(signal));
+                if consume {
+                    *part.signal_mut(signal) = Vec::new();
+                }
+            }
+            *self.signal_mut(signal) = column;
         }
+        self
     }
 
     fn signal(&self, signal: Signal) -> &Vec<f64> {
