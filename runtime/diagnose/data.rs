@@ -135,7 +135,13 @@ pub(super) fn stack(
         let reused = motion
             .and_then(|m| m.get(g))
             .filter(|_| matches!(settings.filter, Filter::Butterworth { .. }));
-        let (rows, rest, (samples, dt), bad) = recording_rows(
+        let Recorded {
+            rows,
+            rest,
+            samples,
+            dt,
+            non_finite,
+        } = recording_rows(
             (model, models(&tilted)),
             (raw_recording, &settings),
             (stage, reversal, reused.is_some()),
@@ -143,7 +149,7 @@ pub(super) fn stack(
             (&template, &mut raw),
         )?;
         widen(&mut at_rest, &rest);
-        if let Some(at) = bad {
+        if let Some(at) = non_finite {
             let (sample, joint) = (at / n, at % n + 1);
             anyhow::bail!(
                 "recording {}: the model's torque or regressor is not finite at sample {sample}, \
@@ -236,7 +242,7 @@ fn recording_rows(
     (stage, reversal, dry_only): (Stage, Option<&Needs>, bool),
     (levers, moving): (&[f64], &[f64]),
     (template, memory): (&Rows, &mut Vec<Vec<f64>>),
-) -> anyhow::Result<(Rows, Vec<f64>, (Vec<usize>, f64), Option<usize>)> {
+) -> anyhow::Result<Recorded> {
     let band_hz = reversal.map_or(0.0, |r| r.band_hz);
     let cutoff = match settings.filter {
         Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
@@ -267,7 +273,13 @@ fn recording_rows(
             &keep,
             (memory, RAW_BUDGET_BYTES),
         )?;
-        return Ok((rows, band.rest, (samples, dt), bad));
+        return Ok(Recorded {
+            rows,
+            rest: band.rest,
+            samples,
+            dt,
+            non_finite: bad,
+        });
     }
     // Parallel filtering (Butterworth): the whole equation tau = Y theta
     // passes the torque filter, so every column is compared exactly.
@@ -305,7 +317,25 @@ fn recording_rows(
         &keep,
         (memory, RAW_BUDGET_BYTES),
     )?;
-    Ok((rows, band.rest, (samples, dt), bad))
+    Ok(Recorded {
+        rows,
+        rest: band.rest,
+        samples,
+        dt,
+        non_finite: bad,
+    })
+}
+
+/// What [`recording_rows`] gives.
+struct Recorded {
+    rows: Rows,
+    /// Each joint's at-rest speed.
+    rest: Vec<f64>,
+    /// The kept samples, numbered at the period `dt`.
+    samples: Vec<usize>,
+    dt: f64,
+    /// The first row where a checked signal is not finite.
+    non_finite: Option<usize>,
 }
 
 /// Shortest and longest cross-validation segment, s.

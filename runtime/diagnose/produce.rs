@@ -439,6 +439,9 @@ mod tests {
         }
     }
 
+    /// A signal's raw value at a (sample, joint).
+    type Value<'a> = Box<dyn Fn(usize, usize) -> f64 + 'a>;
+
     /// Joint `j`'s series of `value` (sample, joint), filtered alone by the
     /// torque filter, at the kept samples; and those of `rows`' signal.
     fn alone_and_kept(
@@ -474,7 +477,7 @@ mod tests {
         };
         let v = stribeck_velocities()[9];
         for j in 0..3 {
-            let checks: [(Signal, Box<dyn Fn(usize, usize) -> f64>); 5] = [
+            let checks: [(Signal, Value); 5] = [
                 (
                     Signal::Residual,
                     Box::new(|s, i| traj.tau()[(s, i)] - predicted[(s, i)]),
