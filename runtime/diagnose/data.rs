@@ -118,7 +118,7 @@ pub(super) fn stack(
     // most of what the diagnosis would allocate, and freshly allocated
     // memory is paid again in page faults.
     let mut raw = Vec::new();
-    let template = Rows::with_columns(n, 0, (stage, bodies));
+    let template = Rows::with_columns(n, (stage, bodies));
     let (mut durations, mut sample_counts) = (Vec::new(), Vec::new());
     let mut at_rest = vec![0.0_f64; n];
     let mut trimmed = 0;
@@ -248,7 +248,7 @@ fn recording_rows(
         Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
         _ => None,
     };
-    let mut rows = Rows::with_columns(levers.len(), 0, (stage, reversal.is_none_or(|r| r.bodies)));
+    let mut rows = Rows::with_columns(levers.len(), (stage, reversal.is_none_or(|r| r.bodies)));
     if let (Some(cutoff_hz), true) = (cutoff, dry_only) {
         let dt = step(raw);
         let band = band::velocity(raw, settings, moving, band_hz)?;

@@ -406,7 +406,7 @@ mod tests {
             dt: DT,
             samples: &samples,
         };
-        let mut rows = Rows::with_columns(3, 0, (stage, true));
+        let mut rows = Rows::with_columns(3, (stage, true));
         let signals = rows.signals();
         let bad = produce(
             &mut rows,

@@ -171,18 +171,12 @@ impl Rows {
     /// velocity of the grid at the reversal stage, the generic features of
     /// the unexplained-structure check at the motion stage; the links'
     /// inertial columns with `bodies`.
-    /// Every column holds `capacity` rows without growing (a grown vector
-    /// is copied, and its pages touched twice).
-    pub(super) fn with_columns(
-        dof: usize,
-        capacity: usize,
-        (stage, bodies): (Stage, bool),
-    ) -> Rows {
+    pub(super) fn with_columns(dof: usize, (stage, bodies): (Stage, bool)) -> Rows {
         let (stribeck, generic) = match stage {
             Stage::Reversals => (stribeck_velocities().len(), 0),
             Stage::Motion => (0, GENERIC_FEATURES.len()),
         };
-        let column = |_: usize| Vec::with_capacity(capacity);
+        let column = |_: usize| Vec::new();
         let columns = |count: usize| (0..count).map(column).collect();
         Rows {
             residual: column(0),
