@@ -78,8 +78,11 @@ impl Signal {
 }
 
 impl Rows {
-    /// Every signal these rows have a column for, in a fixed order (a
-    /// link's ten columns side by side, the generic features together).
+    /// Every signal these rows have a column for, in a fixed order: the
+    /// regressor's columns first and together (a batch of
+    /// [`super::produce`] that holds any of them computes the regressor,
+    /// so they span as few batches as they can), the generic features
+    /// together.
     pub(super) fn signals(&self) -> Vec<Signal> {
         use Signal::*;
         let fixed = [Residual, Measured, Qd, Qdd, Gravity, CoulombApplied];
@@ -88,10 +91,9 @@ impl Rows {
         let generic = (0..self.generic.len()).map(Generic);
         let tilt = (0..self.tilt.len()).map(Tilt);
         let stribeck = (0..self.stribeck.len()).map(Stribeck);
-        fixed
-            .into_iter()
+        inertial
+            .chain(fixed)
             .chain(own)
-            .chain(inertial)
             .chain(generic)
             .chain(tilt)
             .chain([MeasuredRate])
