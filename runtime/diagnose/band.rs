@@ -9,7 +9,7 @@
 
 use nalgebra::DMatrix;
 
-use super::candidate::Candidate;
+use super::candidate::{Candidate, Place, place};
 use super::kind::Kind;
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
 use crate::trajectory::Trajectory;
@@ -99,17 +99,24 @@ pub(super) struct Needs {
     pub(super) tilt: bool,
     /// The reversal band's cut-off, Hz.
     pub(super) band_hz: f64,
+    /// The candidates the stage refits (those named) and tries (Stribeck
+    /// friction on the joints tried): the only ones its stack builds.
+    pub(super) places: Vec<Place>,
 }
 
 impl Needs {
-    /// What `selected` of `candidates` (the motion stage's) needs.
+    /// What `selected` of `candidates` (the motion stage's) needs, with
+    /// Stribeck friction tried on `joints`.
     pub(super) fn of(
+        (candidates, selected): (&[Candidate], &[usize]),
         dof: usize,
-        candidates: &[Candidate],
-        selected: &[usize],
+        joints: &[usize],
         band: &Pipeline,
     ) -> Needs {
         let named = || selected.iter().map(|&c| &candidates[c]);
+        let stribeck = joints
+            .iter()
+            .map(|&j| (Kind::StribeckFriction, Some(j), None));
         Needs {
             ripple: (0..dof)
                 .map(|j| {
@@ -122,6 +129,7 @@ impl Needs {
             bodies: named().any(|c| c.link.is_some()),
             tilt: named().any(|c| c.kind == Kind::GravityDirection),
             band_hz: band.choice.as_ref().map_or(0.0, |c| c.cutoff_hz),
+            places: named().map(place).chain(stribeck).collect(),
         }
     }
 }

@@ -110,10 +110,9 @@ pub(super) struct Columns {
     /// The longest sample period of the raw recordings, s.
     pub(super) sample_period: f64,
     /// Per Stribeck velocity of `search::stribeck_velocities` the fitted
-    /// Stribeck column (moving sign) twice, as fitted and as scored (the
-    /// reversal stage scores what the physics explains); empty at the
-    /// motion stage.
-    pub(super) stribeck: Vec<(DVector<f64>, DVector<f64>)>,
+    /// Stribeck column (moving sign), also the scored one (the reversal
+    /// stage scores what the physics explains); empty at the motion stage.
+    pub(super) stribeck: Vec<DVector<f64>>,
     /// Per joint the speed below which it counts as at rest (the largest
     /// over the recordings), rad/s.
     pub(super) rest: Vec<f64>,
@@ -122,6 +121,19 @@ pub(super) struct Columns {
     /// Per joint the ripple's cycles when they are given (the reversal
     /// stage takes the motion stage's choice): no harmonic search then.
     pub(super) ripple_given: Option<Vec<Option<f64>>>,
+    /// The only candidates built, by kind, joint and link (`None`: all):
+    /// the reversal stage refits a few, and every candidate's columns at
+    /// its rate would be most of its memory.
+    pub(super) only: Option<Vec<Place>>,
+}
+
+/// A candidate's kind, joint and link.
+pub(super) type Place = (Kind, Option<usize>, Option<usize>);
+
+/// Where `candidate` is.
+pub(super) fn place(candidate: &Candidate) -> Place {
+    let link = candidate.link.as_ref().map(|(k, _)| *k);
+    (candidate.kind, candidate.joint, link)
 }
 
 /// Every candidate effect: per joint viscous, Coulomb and direction-dependent
@@ -151,7 +163,9 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         rest,
         modelled_ripple,
         ripple_given,
+        only,
     } = columns;
+    let wanted = |place: Place| only.as_ref().is_none_or(|o| o.contains(&place));
     let model_torque = &data.measured - &data.residual;
     let own = |j: usize, f: &dyn Fn(usize) -> f64| {
         DVector::from_fn(
@@ -174,22 +188,36 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             settings: Vec::new(),
             searched: 1,
         };
-        list.push(one(Kind::ViscousFriction, "coefficient", &|r| qd[r]));
-        list.push(Candidate {
+        let at = |kind: Kind| wanted((kind, Some(j), None));
+        let mut add = |kind: Kind, build: &dyn Fn() -> Candidate| {
+            if at(kind) {
+                list.push(build());
+            }
+        };
+        add(Kind::ViscousFriction, &|| {
+            one(Kind::ViscousFriction, "coefficient", &|r| qd[r])
+        });
+        add(Kind::CoulombFriction, &|| Candidate {
             applied: Some(own(j, &|r| coulomb_applied[r])),
             ..one(Kind::CoulombFriction, "level", &|r| sign[r])
         });
-        list.push(Candidate {
+        add(Kind::CoulombAsymmetry, &|| Candidate {
             applied: Some(own(j, &|r| coulomb_applied[r] * coulomb_applied[r])),
             shape: Shape::Asymmetry {
                 modelled_coulomb: coulomb_levels.get(j).copied().unwrap_or(0.0),
             },
             ..one(Kind::CoulombAsymmetry, "asymmetry", &|r| sign[r] * sign[r])
         });
-        list.push(one(Kind::Armature, "inertia", &|r| qdd[r]));
-        list.push(one(Kind::TorqueOffset, "offset", &|r| ones[r]));
-        list.push(one(Kind::TorqueScale, "scale_error", &|r| model_torque[r]));
-        list.push(Candidate {
+        add(Kind::Armature, &|| {
+            one(Kind::Armature, "inertia", &|r| qdd[r])
+        });
+        add(Kind::TorqueOffset, &|| {
+            one(Kind::TorqueOffset, "offset", &|r| ones[r])
+        });
+        add(Kind::TorqueScale, &|| {
+            one(Kind::TorqueScale, "scale_error", &|r| model_torque[r])
+        });
+        add(Kind::JointSpring, &|| Candidate {
             names: vec!["stiffness", "constant"],
             columns: vec![own(j, &|r| angle[r]), own(j, &|r| ones[r])],
             ..one(Kind::JointSpring, "", &|_| 0.0)
@@ -199,14 +227,20 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             .chain(&inertial)
             .chain(tilt.iter().flat_map(|(_, columns)| columns))
             .collect();
-        let nuisance = search::Nuisance::new(data, j, &linear);
+        // Built only for a search that runs (a Stribeck velocity, a ripple's
+        // harmonic): one joint's rows of every linear column.
+        let nuisance = std::cell::OnceCell::new();
+        let nuisance = || nuisance.get_or_init(|| search::Nuisance::new(data, j, &linear));
         let at_rest = rest.get(j).copied().unwrap_or(0.0);
-        if let Some((k, velocity, searched)) =
-            search::stribeck_velocity(&nuisance, at_rest, data.levers[j], &stribeck)
-        {
-            let (fitted, applied) = &stribeck[k];
+        let found = match at(Kind::StribeckFriction) {
+            true => search::stribeck_velocity(nuisance(), at_rest, data.levers[j], &stribeck),
+            false => None,
+        };
+        if let Some((k, velocity, searched)) = found {
+            // Scored as fitted (see `Columns::stribeck`).
+            let fitted = &stribeck[k];
             list.push(Candidate {
-                applied: Some(own(j, &|r| applied[r])),
+                applied: Some(own(j, &|r| fitted[r])),
                 settings: vec![("velocity", velocity)],
                 searched,
                 ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])
@@ -215,6 +249,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         let modelled = modelled_ripple.get(j).copied().flatten();
         let given = ripple_given.as_ref().map(|g| g.get(j).copied().flatten());
         let ripple = match given.unwrap_or(modelled).or(modelled) {
+            _ if !at(Kind::TorqueRipple) => None,
             // A ripple the model has is refit at its harmonic (a correction
             // of its amplitudes; a description holds one harmonic per
             // joint). No search: the nuisance's model-torque column holds
@@ -222,7 +257,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             // harmonic, and an amplitude 4 times the model's went unnamed.
             Some(cycles) => Some((cycles, 1)),
             None if given.is_some() => None,
-            None => search::ripple_cycles(data, j, &angle, &nuisance),
+            None => search::ripple_cycles(data, j, &angle, nuisance()),
         };
         if let Some((cycles, searched)) = ripple {
             list.push(Candidate {
@@ -250,11 +285,13 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         settings: Vec::new(),
         searched: 1,
     };
-    list.push(Candidate {
-        shape: Shape::Delay { sample_period },
-        ..whole(Kind::TorqueDelay, vec!["delay"], vec![-measured_rate])
-    });
-    if let Some((shape, columns)) = tilt {
+    if wanted((Kind::TorqueDelay, None, None)) {
+        list.push(Candidate {
+            shape: Shape::Delay { sample_period },
+            ..whole(Kind::TorqueDelay, vec!["delay"], vec![-measured_rate])
+        });
+    }
+    if let Some((shape, columns)) = tilt.filter(|_| wanted((Kind::GravityDirection, None, None))) {
         list.push(Candidate {
             shape,
             ..whole(
@@ -269,11 +306,13 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
     let links = if inertial.is_empty() { &[] } else { links };
     for (k, link) in links.iter().enumerate().rev() {
         let columns: Vec<DVector<f64>> = inertial.drain(10 * k..).collect();
-        if k + 1 == n {
+        if k + 1 == n && wanted((Kind::Payload, None, Some(k))) {
             list.push(payload_candidate(k, link, columns.clone()));
         }
-        list.extend(whole_candidate(k, link, &columns));
-        list.push(link_candidate(k, link, columns));
+        if wanted((Kind::InertialError, None, Some(k))) {
+            list.extend(whole_candidate(k, link, &columns));
+            list.push(link_candidate(k, link, columns));
+        }
     }
     list
 }

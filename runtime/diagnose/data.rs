@@ -4,12 +4,13 @@ use nalgebra::{DVector, Vector3};
 
 use super::band::{self, Band, Needs, Stage};
 use super::candidate::{Candidate, Columns, Shape, candidates};
-use super::rows::{MOVING, Rows, Tilted, fill, fill_dry};
+use super::produce::{Inputs, Keep, RAW_BUDGET_BYTES, produce};
+use super::rows::{MOVING, Rows, Tilted};
 use super::settings::Settings;
 use super::stacked::{Layout, Link, Stacked};
 use crate::dynamics::Dynamics;
 use crate::oracle::Model;
-use crate::preprocess::{Filter, Pipeline, Preprocess, ZeroPhaseLowPass, step};
+use crate::preprocess::{Filter, Pipeline, Preprocess, step};
 use crate::trajectory::Trajectory;
 
 /// Shortest cross-validation segment, s.
@@ -112,77 +113,43 @@ pub(super) fn stack(
     let levers = crate::dynamics::joint_levers(model);
     let moving: Vec<f64> = levers.iter().map(|lever| MOVING * lever).collect();
     let mut kept = Vec::new();
-    // One recording's rows at a time, in memory reused for the next: the
-    // full-rate columns are most of what the diagnosis allocates, and
-    // freshly allocated memory is paid again in page faults.
-    let longest = recordings.iter().map(Trajectory::len).max().unwrap_or(0);
-    let mut rows = Rows::with_columns(n, longest * n, (stage, bodies));
-    let mut durations = Vec::new();
+    // Columns are built a batch at a time in raw-rate memory reused for
+    // the next batch and recording (`produce`): the full-rate columns are
+    // most of what the diagnosis would allocate, and freshly allocated
+    // memory is paid again in page faults.
+    let mut raw = Vec::new();
+    let template = Rows::with_columns(n, (stage, bodies));
+    let (mut durations, mut sample_counts) = (Vec::new(), Vec::new());
     let mut at_rest = vec![0.0_f64; n];
     let mut trimmed = 0;
-    for (g, raw) in recordings.iter().enumerate() {
-        if raw.dof() != n {
+    for (g, raw_recording) in recordings.iter().enumerate() {
+        if raw_recording.dof() != n {
             anyhow::bail!(
                 "recording {} has {} joints, model `{}` has {n}",
                 g + 1,
-                raw.dof(),
+                raw_recording.dof(),
                 model.name()
             );
         }
-        let settings = pipeline.for_recording(raw);
-        let butterworth = matches!(settings.filter, Filter::Butterworth { .. });
-        let reused = motion.and_then(|m| m.get(g)).filter(|_| butterworth);
-        let (samples, dt) = match (settings.filter.clone(), reversal, reused) {
-            (Filter::Butterworth { cutoff_hz }, Some(needs), Some(_)) => {
-                let dt = step(raw);
-                let band = band::velocity(raw, &settings, &moving, needs.band_hz)?;
-                widen(&mut at_rest, &band.rest);
-                fill_dry(&mut rows, &band, &levers);
-                filter_rows(&mut rows, n, cutoff_hz, dt)?;
-                (Pipeline::kept_samples(&settings, raw.len(), dt), dt)
-            }
-            (filter, ..) => {
-                let cutoff = match filter {
-                    Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
-                    _ => None,
-                };
-                // Parallel filtering (Butterworth): the whole equation tau =
-                // Y theta passes the torque filter, so every column is
-                // compared exactly.
-                let traj = match cutoff {
-                    Some(_) => settings.states_at_full_rate(raw)?,
-                    None => settings.apply(raw)?,
-                };
-                let dt = step(&traj);
-                let band = match (cutoff, stage) {
-                    (None, _) => Band::of(&traj, &moving),
-                    (Some(_), Stage::Motion) => {
-                        Band::of(&traj, &rest_velocities(raw, &traj, &settings, &moving))
-                    }
-                    (Some(_), Stage::Reversals) => {
-                        let band_hz = reversal.map_or(0.0, |r| r.band_hz);
-                        band::velocity(raw, &settings, &moving, band_hz)?
-                    }
-                };
-                widen(&mut at_rest, &band.rest);
-                fill(
-                    &mut rows,
-                    (model, models(&tilted)),
-                    &traj,
-                    &band,
-                    (stage, bodies),
-                    &levers,
-                )?;
-                match cutoff {
-                    Some(cutoff_hz) => {
-                        filter_rows(&mut rows, n, cutoff_hz, dt)?;
-                        (Pipeline::kept_samples(&settings, traj.len(), dt), dt)
-                    }
-                    None => ((0..traj.len()).collect(), dt),
-                }
-            }
-        };
-        if let Some(at) = rows.first_non_finite() {
+        let settings = pipeline.for_recording(raw_recording);
+        let reused = motion
+            .and_then(|m| m.get(g))
+            .filter(|_| matches!(settings.filter, Filter::Butterworth { .. }));
+        let Recorded {
+            rows,
+            rest,
+            samples,
+            dt,
+            non_finite,
+        } = recording_rows(
+            (model, models(&tilted)),
+            (raw_recording, &settings),
+            (stage, reversal, reused.is_some()),
+            (&levers, &moving),
+            (&template, &mut raw),
+        )?;
+        widen(&mut at_rest, &rest);
+        if let Some(at) = non_finite {
             let (sample, joint) = (at / n, at % n + 1);
             anyhow::bail!(
                 "recording {}: the model's torque or regressor is not finite at sample {sample}, \
@@ -193,21 +160,28 @@ pub(super) fn stack(
         }
         trimmed = samples.first().copied().unwrap_or(0);
         durations.push(samples.len() as f64 * dt * settings.downsample.max(1) as f64);
-        let this = rows.keep(n, &samples);
-        kept.push(match reused {
-            Some(motion) => motion.with_dry(this, (bodies, tilted.is_some())),
-            None => this,
-        });
+        sample_counts.push(samples.len());
+        let this = match reused {
+            Some(motion) => motion.with_dry(rows, (bodies, tilted.is_some())),
+            None => rows,
+        };
+        kept.push(this);
+    }
+    // The raw-rate memory is not needed again: freed before the candidates'
+    // columns are built.
+    drop(raw);
+    // Only the motion stage's rows are asked for again (by the reversal
+    // stage's pass at the same pipeline).
+    let all = template.concat(&mut kept, stage == Stage::Reversals);
+    if stage == Stage::Reversals {
+        kept.clear();
     }
     let counts = match settings.segments {
-        Some(k) => vec![k; kept.len()],
+        Some(k) => vec![k; durations.len()],
         None => segment_counts(&durations),
     };
-    let total_rows = kept.iter().map(|rows| rows.residual.len()).sum();
-    let mut all = Rows::with_columns(n, total_rows, (stage, bodies));
-    let mut group = Vec::new();
-    for ((rows, &count), &seconds) in kept.iter().zip(&counts).zip(&durations) {
-        let samples = rows.residual.len() / n;
+    let mut group = Vec::with_capacity(all.len());
+    for ((&samples, &count), &seconds) in sample_counts.iter().zip(&counts).zip(&durations) {
         // A segment of under a second validates nothing and multiplies the
         // folds: a requested count is cut to whole seconds (the report
         // states the segments used).
@@ -216,15 +190,6 @@ pub(super) fn stack(
         let first = group.last().map_or(0, |g| g + 1);
         for s in 0..samples {
             group.extend(std::iter::repeat_n(first + s * count / samples, n));
-        }
-        all.residual.extend(&rows.residual);
-        all.measured.extend(&rows.measured);
-        all.qd.extend(&rows.qd);
-        all.qdd.extend(&rows.qdd);
-        all.gravity.extend(&rows.gravity);
-        all.coulomb_applied.extend(&rows.coulomb_applied);
-        for (to, from) in all.columns_mut().zip(rows.columns()) {
-            to.extend(from);
         }
     }
     let groups = group.last().map_or(0, |g| g + 1);
@@ -255,30 +220,122 @@ pub(super) fn stack(
         measured_rate: DVector::from_vec(all.measured_rate),
         coulomb_levels: coulomb_levels(model),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
-        stribeck: stribeck_pairs(all.stribeck),
+        stribeck: all.stribeck.into_iter().map(DVector::from_vec).collect(),
         rest: at_rest,
         modelled_ripple: super::modelled::ripple_cycles(&super::modelled::joint_effects(model)),
         ripple_given: reversal.map(|r| r.ripple.clone()),
+        only: reversal.map(|r| r.places.clone()),
     };
     let candidates = candidates(&data, columns, &links(model));
     Ok((data, candidates, layout, kept))
 }
 
-/// Every fitted signal of `rows` through the torque's zero-phase filter at
-/// `cutoff_hz` (parallel filtering: the whole equation tau = Y theta
-/// passes it, so every column is compared exactly), on both cores.
-fn filter_rows(rows: &mut Rows, dof: usize, cutoff_hz: f64, dt: f64) -> anyhow::Result<()> {
-    // A column of zeros (a tilt or Stribeck velocity not built at this
-    // stage, a signal `fill_dry` does not build) stays zero through any
-    // linear filter.
-    let mut filtered: Vec<&mut [f64]> = rows
-        .filtered_mut()
-        .filter(|c| c.iter().any(|x| *x != 0.0))
-        .map(|c| c.as_mut_slice())
-        .collect();
-    let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
-    crate::parallel::for_parts_mut(&mut filtered, |part| filter.apply_interleaved(part, dof));
-    Ok(())
+/// One recording's rows at the samples its pipeline keeps (filtered in
+/// parallel with the torque and decimated, see [`produce`]), each joint's
+/// at-rest speed, the kept samples and the period they are numbered at, and
+/// the first row where a checked signal is not finite. With `dry_only` (the
+/// reversal stage's pass at the motion stage's own Butterworth pipeline)
+/// only the dry-friction signals are built.
+fn recording_rows(
+    (model, tilted): (&dyn Dynamics, Option<&Tilted>),
+    (raw, settings): (&Trajectory, &Preprocess),
+    (stage, reversal, dry_only): (Stage, Option<&Needs>, bool),
+    (levers, moving): (&[f64], &[f64]),
+    (template, memory): (&Rows, &mut Vec<Vec<f64>>),
+) -> anyhow::Result<Recorded> {
+    let band_hz = reversal.map_or(0.0, |r| r.band_hz);
+    let cutoff = match settings.filter {
+        Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
+        _ => None,
+    };
+    let mut rows = Rows::with_columns(levers.len(), (stage, reversal.is_none_or(|r| r.bodies)));
+    if let (Some(cutoff_hz), true) = (cutoff, dry_only) {
+        let dt = step(raw);
+        let band = band::velocity(raw, settings, moving, band_hz)?;
+        let samples = Pipeline::kept_samples(settings, raw.len(), dt);
+        let inputs = Inputs {
+            model,
+            tilted,
+            traj: None,
+            band: &band,
+            levers,
+        };
+        let keep = Keep {
+            cutoff_hz: Some(cutoff_hz),
+            dt,
+            samples: &samples,
+        };
+        let signals = template.dry_signals();
+        let bad = produce(
+            &mut rows,
+            &signals,
+            &inputs,
+            &keep,
+            (memory, RAW_BUDGET_BYTES),
+        )?;
+        return Ok(Recorded {
+            rows,
+            rest: band.rest,
+            samples,
+            dt,
+            non_finite: bad,
+        });
+    }
+    // Parallel filtering (Butterworth): the whole equation tau = Y theta
+    // passes the torque filter, so every column is compared exactly.
+    let traj = match cutoff {
+        Some(_) => settings.states_at_full_rate(raw)?,
+        None => settings.apply(raw)?,
+    };
+    let dt = step(&traj);
+    let band = match (cutoff, stage) {
+        (None, _) => Band::of(&traj, moving),
+        (Some(_), Stage::Motion) => Band::of(&traj, &rest_velocities(raw, &traj, settings, moving)),
+        (Some(_), Stage::Reversals) => band::velocity(raw, settings, moving, band_hz)?,
+    };
+    let samples = match cutoff {
+        Some(_) => Pipeline::kept_samples(settings, traj.len(), dt),
+        None => (0..traj.len()).collect(),
+    };
+    let inputs = Inputs {
+        model,
+        tilted,
+        traj: Some(&traj),
+        band: &band,
+        levers,
+    };
+    let keep = Keep {
+        cutoff_hz: cutoff,
+        dt,
+        samples: &samples,
+    };
+    let signals = template.signals();
+    let bad = produce(
+        &mut rows,
+        &signals,
+        &inputs,
+        &keep,
+        (memory, RAW_BUDGET_BYTES),
+    )?;
+    Ok(Recorded {
+        rows,
+        rest: band.rest,
+        samples,
+        dt,
+        non_finite: bad,
+    })
+}
+
+/// What [`recording_rows`] gives.
+struct Recorded {
+    rows: Rows,
+    /// Each joint's at-rest speed.
+    rest: Vec<f64>,
+    /// The kept samples, numbered at the period `dt`.
+    samples: Vec<usize>,
+    dt: f64,
+    /// The first row where a checked signal is not finite.
+    non_finite: Option<usize>,
 }
 
 /// Shortest and longest cross-validation segment, s.
@@ -297,20 +354,6 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
     durations
         .iter()
         .map(|d| ((d / length).round() as usize).max(1))
-        .collect()
-}
-
-/// The stacked Stribeck columns as (fitted, applied) pairs per velocity.
-/// The reversal stage scores the fitted columns only (it names what the
-/// physics explains; the report says how the generated model applies it),
-/// so both are the fitted one.
-fn stribeck_pairs(columns: Vec<Vec<f64>>) -> Vec<(DVector<f64>, DVector<f64>)> {
-    columns
-        .into_iter()
-        .map(|f| {
-            let f = DVector::from_vec(f);
-            (f.clone(), f)
-        })
         .collect()
 }
 

@@ -99,6 +99,7 @@ mod kind;
 mod modelled;
 mod moments;
 pub mod plots;
+mod produce;
 mod report;
 mod reversals;
 mod rows;

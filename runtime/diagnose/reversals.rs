@@ -32,9 +32,14 @@ use super::settings::Settings;
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 use crate::dynamics::Dynamics;
-use crate::parallel::map_in_order;
+use crate::parallel::map_in_order_on;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
+
+/// Longest recording, in (sample, joint) rows, whose two passes run side
+/// by side: about 150 s at 1 kHz on a 7-joint arm, where one pass's
+/// columns at the raw and the reversal band's rates reach a gigabyte.
+const PARALLEL_MOST_ROWS: usize = 1 << 20;
 
 /// A named effect refitted beside Stribeck friction: its kind, 0-based
 /// joint, and each parameter's value with its 95% half-width.
@@ -147,16 +152,24 @@ pub(super) fn stribeck(
         return Ok(found);
     };
     let needs = Needs::of(
+        (motion.candidates, motion.selected),
         model.dof(),
-        motion.candidates,
-        motion.selected,
+        joints,
         &band_pipeline,
     );
     let data = (model, recordings);
-    // The two passes are independent: one on each core.
-    let [gains, band]: [anyhow::Result<Pass>; 2] = map_in_order(
+    // The two passes are independent: one on each core, unless the
+    // recordings are long enough that the memory of both at once matters
+    // more than the wall time (each pass's filter still uses both cores).
+    let rows = recordings.iter().map(|r| r.len() * r.dof()).max();
+    let workers = match rows.unwrap_or(0) > PARALLEL_MOST_ROWS {
+        true => 1,
+        false => 2,
+    };
+    let [gains, band]: [anyhow::Result<Pass>; 2] = map_in_order_on(
         &[(motion_pipeline, true), (&band_pipeline, false)],
         |&pass| Pass::new(data, pass, (&settings, &needs), &motion, joints),
+        workers,
     )
     .try_into()
     .unwrap_or_else(|_| unreachable!("two pipelines give two passes"));

@@ -134,7 +134,7 @@ pub(super) fn stribeck_velocity(
     nuisance: &Nuisance,
     rest: f64,
     lever: f64,
-    columns: &[(DVector<f64>, DVector<f64>)],
+    columns: &[DVector<f64>],
 ) -> Option<(usize, f64, usize)> {
     let velocities: Vec<f64> = stribeck_velocities().iter().map(|v| v * lever).collect();
     if columns.len() != velocities.len() {
@@ -145,7 +145,7 @@ pub(super) fn stribeck_velocity(
         .collect();
     let best = resolved
         .iter()
-        .map(|&k| (k, nuisance.leaves(std::slice::from_ref(&columns[k].0))))
+        .map(|&k| (k, nuisance.leaves(std::slice::from_ref(&columns[k]))))
         .min_by(|x, y| x.1.total_cmp(&y.1))?;
     Some((best.0, velocities[best.0], resolved.len()))
 }
@@ -240,10 +240,7 @@ mod tests {
         let (data, _, qd) = sweep(|_, qd| 0.4 * qd.signum() + 0.2 * shape(0.1, qd));
         let columns: Vec<_> = velocities
             .iter()
-            .map(|&v| {
-                let c = qd.map(|x| shape(v, x));
-                (c.clone(), c)
-            })
+            .map(|&v| qd.map(|x| shape(v, x)))
             .collect();
         let sign = qd.map(f64::signum);
         let ones = DVector::from_element(qd.len(), 1.0);

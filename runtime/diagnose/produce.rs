@@ -1,0 +1,502 @@
+//! One recording's [`Rows`] at the kept samples, produced a batch of
+//! columns at a time: each batch is built at the raw rate, passes the
+//! torque's zero-phase filter (parallel filtering), is trimmed and
+//! decimated, and its raw memory is reused for the next batch. The exact
+//! zero-phase filter needs a column's whole length at once (its backward
+//! pass starts from the end), but not every column at once: the raw rate
+//! holds at most [`RAW_BUDGET_BYTES`] of columns, however long the
+//! recording, and what stays is the decimated data. Each value is computed
+//! by the same expression as when every column was built at once, and each
+//! column's filter does not depend on the others, so the kept rows are the
+//! same numbers whatever the batches.
+
+use nalgebra::DMatrix;
+
+use super::band::Band;
+use super::rows::{Rows, Signal, Tilted, moving_sign};
+use super::search::{RESOLVED_REST_MULTIPLE, stribeck_velocities};
+use crate::dynamics::{Dynamics, model_torques};
+use crate::oracle::{self, coulomb_sign};
+use crate::preprocess::{ZeroPhaseLowPass, step};
+use crate::trajectory::Trajectory;
+
+/// Most raw-rate column memory per batch, bytes. A recording of up to
+/// about a minute at 1 kHz on a 7-joint arm is built in one batch, as
+/// before; longer ones compute the regressor once per batch that holds
+/// some of its columns.
+pub(super) const RAW_BUDGET_BYTES: usize = 256 << 20;
+
+/// What the signals are computed from.
+pub(super) struct Inputs<'a> {
+    pub(super) model: &'a dyn Dynamics,
+    pub(super) tilted: Option<&'a Tilted>,
+    /// The states at the full rate (`None`: the dry-friction signals alone,
+    /// which need only `band`).
+    pub(super) traj: Option<&'a Trajectory>,
+    /// The velocity the dry-friction columns follow, and its at-rest speeds.
+    pub(super) band: &'a Band,
+    pub(super) levers: &'a [f64],
+}
+
+/// What happens to every raw column: the torque filter's cut-off (`None`:
+/// the pipeline filtered the states itself, nothing more), the sample
+/// period, and the kept samples.
+pub(super) struct Keep<'a> {
+    pub(super) cutoff_hz: Option<f64>,
+    pub(super) dt: f64,
+    pub(super) samples: &'a [usize],
+}
+
+/// Per-recording signals at the raw rate that several columns read.
+struct Derived<'a> {
+    predicted: DMatrix<f64>,
+    /// d/dt of the model torque and of the measured torque.
+    rate: DMatrix<f64>,
+    measured_rate: DMatrix<f64>,
+    /// The model's gravity torque.
+    load: DMatrix<f64>,
+    accel: &'a DMatrix<f64>,
+    traj: &'a Trajectory,
+}
+
+/// `out` (built with the columns of `signals`, the others left empty) at
+/// the kept samples, and the first full-rate row where a checked signal is
+/// not finite after filtering. `raw` is the reused raw-rate memory, at
+/// most `budget` bytes of columns (at least one column).
+pub(super) fn produce(
+    out: &mut Rows,
+    signals: &[Signal],
+    inputs: &Inputs,
+    keep: &Keep,
+    (raw, budget): (&mut Vec<Vec<f64>>, usize),
+) -> anyhow::Result<Option<usize>> {
+    let n = inputs.levers.len();
+    let len = inputs.band.qd.nrows();
+    let derived = match inputs.traj {
+        Some(traj) => Some(derived(inputs.model, traj)?),
+        None => None,
+    };
+    let per_batch = (budget / (len * n * 8).max(1)).max(1);
+    let mut first_bad: Option<usize> = None;
+    for batch in signals.chunks(per_batch) {
+        if raw.len() < batch.len() {
+            raw.resize_with(batch.len(), || Vec::with_capacity(len * n));
+        }
+        let columns = &mut raw[..batch.len()];
+        columns.iter_mut().for_each(Vec::clear);
+        build(batch, columns, inputs, derived.as_ref())?;
+        if let Some(cutoff_hz) = keep.cutoff_hz {
+            filter(batch, columns, n, cutoff_hz, keep.dt)?;
+        }
+        for (&signal, column) in batch.iter().zip(columns.iter()) {
+            if signal.checked()
+                && let Some(at) = column.iter().position(|x| !x.is_finite())
+            {
+                first_bad = Some(first_bad.map_or(at, |b| b.min(at)));
+            }
+            *out.signal_mut(signal) = pick(column, n, keep.samples);
+        }
+    }
+    Ok(first_bad)
+}
+
+fn derived<'a>(model: &dyn Dynamics, traj: &'a Trajectory) -> anyhow::Result<Derived<'a>> {
+    let predicted = model_torques(model, traj)?;
+    let accel = traj
+        .qdd()
+        .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
+    let (len, n) = (traj.len(), model.dof());
+    let mut load = DMatrix::zeros(len, n);
+    let mut q = vec![0.0; n];
+    for s in 0..len {
+        for (i, q) in q.iter_mut().enumerate() {
+            *q = traj.q()[(s, i)];
+        }
+        for (i, g) in model.gravity(&q)?.iter().enumerate() {
+            load[(s, i)] = *g;
+        }
+    }
+    Ok(Derived {
+        rate: torque_rate(&predicted, step(traj)),
+        measured_rate: torque_rate(traj.tau(), step(traj)),
+        predicted,
+        load,
+        accel,
+        traj,
+    })
+}
+
+/// The rows of `column` at `samples` (rows are (sample, joint) pairs).
+fn pick(column: &[f64], dof: usize, samples: &[usize]) -> Vec<f64> {
+    // A signal not built stays empty.
+    if column.is_empty() {
+        return Vec::new();
+    }
+    let mut kept = Vec::with_capacity(samples.len() * dof);
+    for &s in samples {
+        kept.extend_from_slice(&column[s * dof..(s + 1) * dof]);
+    }
+    kept
+}
+
+/// Every filtered signal of the batch through the torque's zero-phase
+/// filter at `cutoff_hz`, on both cores.
+fn filter(
+    batch: &[Signal],
+    columns: &mut [Vec<f64>],
+    dof: usize,
+    cutoff_hz: f64,
+    dt: f64,
+) -> anyhow::Result<()> {
+    // A column of zeros (a tilt or Stribeck velocity not built at this
+    // stage) stays zero through any linear filter.
+    let mut filtered: Vec<&mut [f64]> = batch
+        .iter()
+        .zip(columns.iter_mut())
+        .filter(|(s, c)| s.filtered() && c.iter().any(|x| *x != 0.0))
+        .map(|(_, c)| c.as_mut_slice())
+        .collect();
+    let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
+    crate::parallel::for_parts_mut(&mut filtered, |part| filter.apply_interleaved(part, dof));
+    Ok(())
+}
+
+/// Fills each column with its signal at every raw (sample, joint) row.
+/// The regressor, a tilted base's gravity and the generic features give
+/// several columns from one evaluation: computed once per batch for all
+/// of its columns that need them.
+fn build(
+    batch: &[Signal],
+    columns: &mut [Vec<f64>],
+    inputs: &Inputs,
+    derived: Option<&Derived>,
+) -> anyhow::Result<()> {
+    let of = |wanted: fn(Signal) -> Option<usize>| -> Vec<(usize, usize)> {
+        let found = batch.iter().enumerate();
+        found
+            .filter_map(|(c, &s)| wanted(s).map(|k| (c, k)))
+            .collect()
+    };
+    let inertial = of(|s| match s {
+        Signal::Inertial(k) => Some(k),
+        _ => None,
+    });
+    let tilt = of(|s| match s {
+        Signal::Tilt(k) => Some(k),
+        _ => None,
+    });
+    let generic = of(|s| match s {
+        Signal::Generic(k) => Some(k),
+        _ => None,
+    });
+    if let Some(d) = derived {
+        let model = inputs.model;
+        several(columns, &inertial, d.traj, |q, qd, qdd, _| {
+            Ok(model.regressor(q, qd, qdd)?)
+        })?;
+        if let Some(t) = inputs.tilted {
+            several(columns, &tilt, d.traj, |q, _, _, _| {
+                let along = oracle::gravity_along(&t.model, q, &t.directions);
+                Ok(DMatrix::from_fn(q.len(), 3, |i, k| along[k][i]))
+            })?;
+        }
+        several(columns, &generic, d.traj, |q, qd, qdd, s| {
+            let features = (0..q.len()).map(|i| {
+                let sign = moving_sign(inputs.band.qd[(s, i)], inputs.band.rest[i]);
+                let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
+                generic_features(q[i], qd[i], sign, qdd[i], load, rate)
+            });
+            let features: Vec<[f64; 12]> = features.collect();
+            Ok(DMatrix::from_fn(q.len(), 12, |i, k| features[i][k]))
+        })?;
+    }
+    for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
+        single(signal, column, inputs, derived)?;
+    }
+    Ok(())
+}
+
+/// Samples per tile of [`several`].
+const TILE_SAMPLES: usize = 16;
+
+/// The columns `wanted` ((column, index) pairs) of the matrix `values`
+/// gives for each sample (joint x index). Rows are built a few samples at a
+/// time in a tile that stays in the cache, then appended column by column:
+/// written sample by sample, fifty-odd long columns took most of the time.
+fn several(
+    columns: &mut [Vec<f64>],
+    wanted: &[(usize, usize)],
+    traj: &Trajectory,
+    values: impl Fn(&[f64], &[f64], &[f64], usize) -> anyhow::Result<DMatrix<f64>>,
+) -> anyhow::Result<()> {
+    if wanted.is_empty() {
+        return Ok(());
+    }
+    let n = traj.dof();
+    let accel = traj
+        .qdd()
+        .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut tile = vec![Vec::with_capacity(TILE_SAMPLES * n); wanted.len()];
+    let flush = |tile: &mut Vec<Vec<f64>>, columns: &mut [Vec<f64>]| {
+        for (part, &(c, _)) in tile.iter_mut().zip(wanted) {
+            columns[c].extend_from_slice(part);
+            part.clear();
+        }
+    };
+    for s in 0..traj.len() {
+        if s % TILE_SAMPLES == 0 {
+            flush(&mut tile, columns);
+        }
+        for i in 0..n {
+            (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
+        }
+        let y = values(&q, &qd, &qdd, s)?;
+        for i in 0..n {
+            for (part, &(_, k)) in tile.iter_mut().zip(wanted) {
+                part.push(y[(i, k)]);
+            }
+        }
+    }
+    flush(&mut tile, columns);
+    Ok(())
+}
+
+/// A column that one value of one (sample, joint) row gives; columns
+/// [`several`] builds and those without their inputs are left as they are.
+fn single(
+    signal: Signal,
+    column: &mut Vec<f64>,
+    inputs: &Inputs,
+    derived: Option<&Derived>,
+) -> anyhow::Result<()> {
+    let band = inputs.band;
+    let (len, n) = (band.qd.nrows(), inputs.levers.len());
+    let sign = |s: usize, i: usize| moving_sign(band.qd[(s, i)], band.rest[i]);
+    let mut fill = |value: &dyn Fn(usize, usize) -> f64| {
+        column.extend((0..len).flat_map(|s| (0..n).map(move |i| value(s, i))));
+    };
+    if let Signal::Stribeck(k) = signal {
+        let v = stribeck_velocities()[k];
+        fill(&|s, i| stribeck_shape(v, (sign(s, i), band.qd[(s, i)]), inputs.levers[i]));
+        return Ok(());
+    }
+    match (signal, derived) {
+        (Signal::Qd, _) => fill(&|s, i| band.qd[(s, i)]),
+        (Signal::Own(1), _) => fill(&sign),
+        (_, None) => {}
+        (Signal::Residual, Some(d)) => fill(&|s, i| d.traj.tau()[(s, i)] - d.predicted[(s, i)]),
+        (Signal::Measured, Some(d)) => fill(&|s, i| d.traj.tau()[(s, i)]),
+        (Signal::Qdd | Signal::Own(2), Some(d)) => fill(&|s, i| d.accel[(s, i)]),
+        (Signal::Gravity, Some(d)) => fill(&|s, i| d.load[(s, i)]),
+        (Signal::CoulombApplied, Some(d)) => fill(&|s, i| coulomb_sign(d.traj.qd()[(s, i)])),
+        (Signal::Own(0), Some(d)) => fill(&|s, i| d.traj.qd()[(s, i)]),
+        (Signal::Own(3), Some(_)) => fill(&|_, _| 1.0),
+        (Signal::Own(4), Some(d)) => fill(&|s, i| d.traj.q()[(s, i)]),
+        // Without a tilted model its columns are zero.
+        (Signal::Tilt(_), Some(_)) if inputs.tilted.is_none() => fill(&|_, _| 0.0),
+        (Signal::MeasuredRate, Some(d)) => fill(&|s, i| d.measured_rate[(s, i)]),
+        _ => {}
+    }
+    Ok(())
+}
+
+/// A Stribeck column's value for a joint moving with `sign` at the
+/// `resolved` velocity, for the grid velocity `v`.
+fn stribeck_shape(v: f64, (sign, resolved): (f64, f64), lever: f64) -> f64 {
+    // Velocities below the least at-rest speed's resolved multiple are
+    // never searched: a zero column, not filtered.
+    if v < RESOLVED_REST_MULTIPLE * super::rows::MOVING {
+        0.0
+    } else {
+        sign * (-(resolved / (v * lever)).powi(2)).exp()
+    }
+}
+
+fn generic_features(q: f64, qd: f64, sign: f64, qdd: f64, load: f64, rate: f64) -> [f64; 12] {
+    [
+        qd,
+        qd * qd.abs(),
+        sign,
+        sign * (-qd.abs() / 0.1).exp(),
+        qdd,
+        load,
+        q.sin(),
+        q.cos(),
+        (2.0 * q).sin(),
+        (2.0 * q).cos(),
+        1.0,
+        rate,
+    ]
+}
+
+/// Time derivative of every column of `tau` (central differences).
+fn torque_rate(tau: &DMatrix<f64>, dt: f64) -> DMatrix<f64> {
+    let mut rate = DMatrix::zeros(tau.nrows(), tau.ncols());
+    for j in 0..tau.ncols() {
+        let x: Vec<f64> = tau.column(j).iter().copied().collect();
+        if let Ok(d) = crate::preprocess::central_difference(&x, dt) {
+            rate.column_mut(j).copy_from_slice(&d);
+        }
+    }
+    rate
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::*;
+    use crate::diagnose::band::Stage;
+    use crate::oracle::Model;
+
+    const SAMPLES: usize = 1200;
+    const DT: f64 = 1e-3;
+
+    /// The 3-DOF arm moving smoothly for 1.2 s at 1 kHz, its torque the
+    /// model's plus friction and a ripple the model lacks.
+    fn recording(model: &dyn Dynamics) -> Trajectory {
+        let n = model.dof();
+        let t: Vec<f64> = (0..SAMPLES).map(|s| s as f64 * DT).collect();
+        let w = |j: usize| 2.0 + j as f64;
+        let q = DMatrix::from_fn(SAMPLES, n, |s, j| 0.2 + 0.6 * (w(j) * t[s]).sin());
+        let qd = DMatrix::from_fn(SAMPLES, n, |s, j| 0.6 * w(j) * (w(j) * t[s]).cos());
+        let qdd = DMatrix::from_fn(SAMPLES, n, |s, j| -0.6 * w(j) * w(j) * (w(j) * t[s]).sin());
+        let mut tau = DMatrix::zeros(SAMPLES, n);
+        for s in 0..SAMPLES {
+            let row = |m: &DMatrix<f64>| -> Vec<f64> { m.row(s).iter().copied().collect() };
+            let rigid = model.tau(&row(&q), &row(&qd), &row(&qdd)).unwrap();
+            for j in 0..n {
+                let friction = 0.3 * qd[(s, j)] + 0.2 * qd[(s, j)].signum();
+                tau[(s, j)] = rigid[j] + friction + 0.05 * (40.0 * t[s]).sin();
+            }
+        }
+        Trajectory::new(t, q, qd, Some(qdd), tau).unwrap()
+    }
+
+    fn tilted(model: &dyn Dynamics) -> Tilted {
+        let description = crate::dynamics::parsed_description(model).unwrap();
+        Tilted {
+            model: Model::from_description(&description),
+            directions: [Vector3::x(), Vector3::y(), -Vector3::z()],
+        }
+    }
+
+    /// Every signal of `stage`, produced with at most `budget` bytes of raw
+    /// columns at once.
+    fn produced(stage: Stage, budget: usize) -> Rows {
+        let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
+        let traj = recording(model);
+        let tilted = tilted(model);
+        let band = Band {
+            qd: traj.qd().clone(),
+            rest: vec![0.05; 3],
+        };
+        let levers = [1.0; 3];
+        let inputs = Inputs {
+            model,
+            tilted: Some(&tilted),
+            traj: Some(&traj),
+            band: &band,
+            levers: &levers,
+        };
+        let samples: Vec<usize> = (50..SAMPLES - 50).step_by(10).collect();
+        let keep = Keep {
+            cutoff_hz: Some(15.0),
+            dt: DT,
+            samples: &samples,
+        };
+        let mut rows = Rows::with_columns(3, (stage, true));
+        let signals = rows.signals();
+        let bad = produce(
+            &mut rows,
+            &signals,
+            &inputs,
+            &keep,
+            (&mut Vec::new(), budget),
+        );
+        assert_eq!(bad.unwrap(), None);
+        rows
+    }
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    #[test]
+    fn batches_of_any_size_give_the_same_rows() {
+        let column = SAMPLES * 3 * 8;
+        for stage in [Stage::Motion, Stage::Reversals] {
+            let mut whole = produced(stage, usize::MAX);
+            for budget in [1, 7 * column] {
+                let mut batched = produced(stage, budget);
+                for signal in whole.signals() {
+                    let (a, b) = (whole.signal_mut(signal).clone(), batched.signal_mut(signal));
+                    assert_eq!(a.len(), 110 * 3, "{signal:?}");
+                    assert_eq!(bits(&a), bits(b), "{stage:?} {signal:?} at {budget} bytes");
+                }
+            }
+        }
+    }
+
+    /// A signal's raw value at a (sample, joint).
+    type Value<'a> = Box<dyn Fn(usize, usize) -> f64 + 'a>;
+
+    /// Joint `j`'s series of `value` (sample, joint), filtered alone by the
+    /// torque filter, at the kept samples; and those of `rows`' signal.
+    fn alone_and_kept(
+        rows: &mut Rows,
+        signal: Signal,
+        j: usize,
+        value: impl Fn(usize, usize) -> f64,
+    ) -> (Vec<u64>, Vec<u64>) {
+        let series: Vec<f64> = (0..SAMPLES).map(|s| value(s, j)).collect();
+        let filtered = match signal.filtered() {
+            true => ZeroPhaseLowPass::new(15.0, DT).unwrap().apply(&series),
+            false => series,
+        };
+        let expected = (50..SAMPLES - 50).step_by(10).map(|s| filtered[s]);
+        let kept = rows.signal_mut(signal).iter().skip(j).step_by(3).copied();
+        (
+            bits(&expected.collect::<Vec<_>>()),
+            bits(&kept.collect::<Vec<_>>()),
+        )
+    }
+
+    #[test]
+    fn kept_rows_are_each_signal_filtered_alone_then_decimated() {
+        let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
+        let traj = recording(model);
+        let predicted = model_torques(model, &traj).unwrap();
+        let mut rows = produced(Stage::Reversals, 5 * SAMPLES * 3 * 8);
+        let state = |s: usize, m: &DMatrix<f64>| -> Vec<f64> { m.row(s).iter().copied().collect() };
+        let regressor = |s: usize, i: usize, k: usize| {
+            let qdd = traj.qdd().unwrap();
+            let y = model.regressor(&state(s, traj.q()), &state(s, traj.qd()), &state(s, qdd));
+            y.unwrap()[(i, k)]
+        };
+        let v = stribeck_velocities()[9];
+        for j in 0..3 {
+            let checks: [(Signal, Value); 5] = [
+                (
+                    Signal::Residual,
+                    Box::new(|s, i| traj.tau()[(s, i)] - predicted[(s, i)]),
+                ),
+                (Signal::Own(3), Box::new(|_, _| 1.0)),
+                (Signal::Inertial(17), Box::new(|s, i| regressor(s, i, 17))),
+                (Signal::Qd, Box::new(|s, i| traj.qd()[(s, i)])),
+                (
+                    Signal::Stribeck(9),
+                    Box::new(|s, i| {
+                        let qd = traj.qd()[(s, i)];
+                        stribeck_shape(v, (moving_sign(qd, 0.05), qd), 1.0)
+                    }),
+                ),
+            ];
+            for (signal, value) in checks {
+                let (alone, kept) = alone_and_kept(&mut rows, signal, j, value);
+                assert_eq!(alone, kept, "{signal:?} joint {}", j + 1);
+            }
+        }
+    }
+}
