@@ -203,6 +203,7 @@ pub(super) fn stack(
     let data = Stacked {
         residual: vector(all.residual),
         measured: vector(all.measured),
+        angle: vector(all.own[4].clone()),
         qd: vector(all.qd),
         qdd: vector(all.qdd),
         gravity: vector(all.gravity),

@@ -85,6 +85,7 @@ mod alternatives;
 pub mod apply;
 mod band;
 mod candidate;
+mod choose;
 mod companion;
 pub mod data;
 mod diagnosis;
@@ -102,6 +103,7 @@ pub mod plots;
 mod produce;
 mod report;
 mod reversals;
+mod ripple;
 mod rows;
 mod sanity;
 mod search;
@@ -121,17 +123,16 @@ mod whole;
 use crate::dynamics::Dynamics;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
-use candidate::{Candidate, Shape, label};
+use candidate::label;
+use choose::{Chosen, choose};
 pub use data::segment_counts;
 use data::{reject_duplicates, stack};
 pub use diagnosis::{Diagnosis, Effect, Regimes, ResidualSamples};
 use heldout::{Scoring, cv_mse, cv_mse_per_joint};
 pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
-use moments::Moments;
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
 pub use sanity::{Check, Exchange, Finding, Refusal, Sanity};
-use select::{body_identifiable, mass_identifiable, select};
 pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
 pub use stacked::Layout;
 pub use unconstrained::Unconstrained;
@@ -150,70 +151,6 @@ fn joint_kinds(model: &dyn Dynamics) -> Vec<String> {
             .collect()
     });
     kinds.unwrap_or_else(|| vec!["revolute".to_string(); model.dof()])
-}
-
-/// Drops, one at a time, a named effect that removes no held-out error
-/// from its joints once applied (the generated model's columns, counted in
-/// selection order): selection scores the fitted columns, and an effect at
-/// the noise floor can pass it yet make the applied model no better.
-fn drop_unhelpful(
-    m: &Moments,
-    candidates: &[Candidate],
-    selected: &mut Vec<usize>,
-    notes: &mut Vec<String>,
-) {
-    while let Some(position) = report::heldout_removals(m, candidates, selected)
-        .iter()
-        .enumerate()
-        .position(|(k, &(removed, _))| {
-            removed <= 0.0 && !helps_the_rest(m, candidates, selected, k)
-        })
-    {
-        let dropped = selected.remove(position);
-        notes.push(format!(
-            "{}: significant in the fit, but once applied it removes no held-out error from its \
-             joints; dropped",
-            label(&candidates[dropped])
-        ));
-    }
-}
-
-/// Whether the effect at `position` of `selected` lowers its joints'
-/// held-out MSE (applied columns) beside all the others. Counted in the
-/// order named, an effect can seem to remove nothing because one named
-/// after it does the work it needed: viscous friction named beside a
-/// joint's Coulomb friction before a payload that dominates the joint's
-/// residual (a Panda with friction on every joint and 0.8 kg at the
-/// flange: joint 4's held-out MSE 0.0018 with it in the final model,
-/// 0.0100 without it, and -0.009 of 15 "removed" where it was named).
-fn helps_the_rest(
-    m: &Moments,
-    candidates: &[Candidate],
-    selected: &[usize],
-    position: usize,
-) -> bool {
-    let (with, without) = heldout::with_and_without(m, candidates, selected, position);
-    without > with
-}
-
-/// Fits the first moment alone (the mass held as modelled) for these body
-/// candidates.
-fn hold_mass(candidates: &mut [Candidate], which: &[usize]) {
-    for &c in which {
-        if let Shape::Body {
-            offset,
-            base_mass,
-            base_moment,
-        } = candidates[c].shape
-        {
-            candidates[c].shape = Shape::Moment {
-                offset,
-                base_mass,
-                base_moment,
-            };
-            candidates[c].names = vec!["mx", "my", "mz"];
-        }
-    }
 }
 
 /// Diagnoses `model` on raw recordings, preprocessed by `pipeline`.
@@ -269,39 +206,21 @@ pub fn diagnose(
         sanity::refuse(model, &sanity.findings)?;
     }
     sanity.findings.splice(0..0, misplaced);
-    let moments = Moments::new(&data, &candidates);
-    // A link whose origin does not accelerate has no mass column of its
-    // own: its mass acts only through its second moments, which identify it
-    // if the inertia about the COM is as modelled (noted); where they do not,
-    // or where the body it fits is rejected, only the first moment is fitted.
-    let (mut second_moments, massless): (Vec<usize>, Vec<usize>) = (0..candidates.len())
-        .filter(|&c| !mass_identifiable(&moments, &candidates, c, size))
-        .partition(|&c| body_identifiable(&moments, &candidates, c));
-    hold_mass(&mut candidates, &massless);
-    let mut selection = select(&moments, data.dof, &candidates, settings);
-    let retry: Vec<usize> = second_moments
-        .iter()
-        .copied()
-        .filter(|c| selection.rejected.contains(c))
-        .collect();
-    if !retry.is_empty() {
-        hold_mass(&mut candidates, &retry);
-        second_moments.retain(|c| !retry.contains(c));
-        selection = select(&moments, data.dof, &candidates, settings);
+    let mut chosen = choose(&data, &mut candidates, settings, size);
+    let harmonics = ripple::researched(&data, &candidates, &chosen.selected);
+    if !harmonics.is_empty() {
+        let changed = ripple::set_harmonics(&data, &mut candidates, &harmonics);
+        chosen = choose(&data, &mut candidates, settings, size);
+        chosen.notes.extend(changed);
     }
-    let (mut selected, mut notes) = (selection.selected, selection.notes);
-    // Pruning and the body swaps may have changed the selection since its
-    // last step.
-    companion::complete_friction(
-        &moments,
-        data.dof,
-        &candidates,
-        &mut selected,
-        &mut notes,
-        settings,
-    );
-    select::prune(&moments, &candidates, &mut selected, &mut notes, settings);
-    drop_unhelpful(&moments, &candidates, &mut selected, &mut notes);
+    let Chosen {
+        moments,
+        selected,
+        mut notes,
+        supported,
+        alternatives,
+        second_moments,
+    } = chosen;
     let bias = |selected: &[usize], supported: &[supported::Supported]| {
         let width = selected
             .iter()
@@ -310,31 +229,13 @@ pub fn diagnose(
         let timing = supported::timing_shift(&moments, &candidates, selected);
         supported::bias(supported, timing, width)
     };
-    // The last selection judged is the final one: its supported effects
-    // are the report's.
-    let mut supported = Vec::new();
-    held::drop_unheld(&moments, &candidates, &mut selected, &mut notes, |s| {
-        supported = supported::supported(&moments, data.dof, &candidates, s, settings);
-        let timing = supported::timing_shift(&moments, &candidates, s);
-        held::bias_elsewhere(&candidates, s, &supported, timing)
-    });
-    smooth::drop_friction_traces(
-        &data,
-        &moments,
-        &candidates,
-        &mut selected,
-        &mut notes,
-        settings,
-    );
-    dry::settle_by_rest(&data, &moments, &candidates, &mut selected, &mut notes);
     let motion = reversals::Motion {
         candidates: &candidates,
         selected: &selected,
         rows: &kept,
     };
     let stribeck = stribeck::at_reversals(model, recordings, pipeline, settings, motion)?;
-    let alternatives: Vec<_> = selection
-        .alternatives
+    let alternatives: Vec<_> = alternatives
         .into_iter()
         .filter(|a| selected.contains(&a.named))
         .collect();

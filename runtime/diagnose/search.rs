@@ -203,6 +203,7 @@ pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVec
     let data = Stacked {
         measured: residual.clone(),
         residual,
+        angle: q.clone(),
         qd: qd.clone(),
         qdd: DVector::zeros(samples),
         gravity: DVector::zeros(samples),

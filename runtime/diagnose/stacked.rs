@@ -8,6 +8,8 @@ use nalgebra::DVector;
 pub(crate) struct Stacked {
     pub(super) residual: DVector<f64>,
     pub(super) measured: DVector<f64>,
+    /// Each row's joint position, velocity and acceleration (filtered).
+    pub(super) angle: DVector<f64>,
     pub(super) qd: DVector<f64>,
     pub(super) qdd: DVector<f64>,
     /// The model's gravity torque.
