@@ -137,6 +137,12 @@ impl Moments {
         }
     }
 
+    /// The residual's sum of squares over the groups `keep` accepts.
+    pub(super) fn residual_sum(&self, keep: impl Fn(usize) -> bool) -> f64 {
+        let kept = self.rr.iter().enumerate().filter(|(g, _)| keep(*g));
+        kept.map(|(_, joints)| joints.iter().sum::<f64>()).sum()
+    }
+
     /// The scoring columns of fitted `columns` (see `Candidate::applied`).
     pub(super) fn applied(&self, columns: &[usize]) -> Vec<usize> {
         columns.iter().map(|&c| self.applied[c]).collect()
