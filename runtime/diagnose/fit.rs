@@ -116,11 +116,18 @@ pub(super) fn fit(
     if other_start {
         starts.push(DVector::from_vec(modelled));
     }
-    let (theta, coef, jacobian) = starts
-        .into_iter()
-        .filter_map(|start| descend(candidates, selected, (&a, &b, rr), start))
-        .min_by(|x, y| x.3.total_cmp(&y.3))
-        .map(|(t, c, j, _)| (t, c, j))?;
+    let nonlinear = selected.iter().any(|&c| !candidates[c].shape.is_linear());
+    let (theta, coef, jacobian) = if nonlinear {
+        let reduced = reduce(candidates, selected, (&a, &b, rr))?;
+        starts
+            .into_iter()
+            .map(|start| descend(candidates, selected, &reduced, start))
+            .min_by(|x, y| x.3.total_cmp(&y.3))
+            .map(|(t, c, j, _)| (t, c, j))?
+    } else {
+        let start = starts.into_iter().next()?;
+        linear(candidates, selected, &a, &b, start)
+    };
     let information = jacobian.transpose() * &a * &jacobian;
     Some(Fit {
         theta,
@@ -129,22 +136,32 @@ pub(super) fn fit(
     })
 }
 
-/// The least-squares fit from `theta` on the normal equations (a, b) and
-/// the residual's sum of squares `rr`: the linear candidates' coefficients
-/// eliminated exactly (variable projection: for given nonlinear
-/// coefficients the best linear ones solve a linear system, which leaves a
-/// least-squares problem in the nonlinear coefficients alone, their Schur
-/// complement), Levenberg-Marquardt on what is left. Linear parameters
-/// collinear with a body's columns (a neighbouring link's whole-body error)
-/// made the joint descent crawl. Returns the parameters, the column
-/// coefficients, their Jacobian and the objective; `None` when the
+/// The least-squares problem of the nonlinear candidates' coefficients
+/// alone: the linear candidates' coefficients eliminated exactly (variable
+/// projection: for given nonlinear coefficients the best linear ones solve
+/// a linear system, which leaves a least-squares problem in the nonlinear
+/// coefficients alone, their Schur complement). Linear parameters collinear
+/// with a body's columns (a neighbouring link's whole-body error) made a
+/// joint descent crawl. The same for every start of a fit.
+struct Reduced {
+    /// The nonlinear candidates, in selection order, and where their
+    /// parameters sit among all of them.
+    bodies: Vec<usize>,
+    nonlinear_parameters: Vec<usize>,
+    /// The best linear coefficients are y - x c for nonlinear coefficients c.
+    x: DMatrix<f64>,
+    y: DVector<f64>,
+    problem: SquareRoot,
+}
+
+/// The [`Reduced`] problem of normal equations (a, b) with the residual's
+/// sum of squares `rr`; `None` when every candidate is linear or the
 /// problem is not finite.
-fn descend(
+fn reduce(
     candidates: &[Candidate],
     selected: &[usize],
     (a, b, rr): (&DMatrix<f64>, &DVector<f64>, f64),
-    theta: DVector<f64>,
-) -> Option<(DVector<f64>, DVector<f64>, DMatrix<f64>, f64)> {
+) -> Option<Reduced> {
     let (mut linear_columns, mut nonlinear_columns) = (Vec::new(), Vec::new());
     let mut nonlinear_parameters = Vec::new();
     let (mut column, mut parameter) = (0, 0);
@@ -159,7 +176,7 @@ fn descend(
         (column, parameter) = (column + n, parameter + w);
     }
     if nonlinear_columns.is_empty() {
-        return Some(linear(candidates, selected, a, b, theta));
+        return None;
     }
     let block = |rows: &[usize], columns: &[usize]| a.select_rows(rows).select_columns(columns);
     let a_ll = block(&linear_columns, &linear_columns);
@@ -177,18 +194,37 @@ fn descend(
         b.select_rows(&nonlinear_columns) - &a_nl * &y,
         rr - b_l.dot(&y),
     )?;
-    let bodies: Vec<usize> = selected
+    let bodies = selected
         .iter()
         .copied()
         .filter(|&c| !candidates[c].shape.is_linear())
         .collect();
+    Some(Reduced {
+        bodies,
+        nonlinear_parameters,
+        x,
+        y,
+        problem,
+    })
+}
+
+/// The least-squares fit from `theta`: Levenberg-Marquardt on the reduced
+/// problem, then the linear coefficients that go with it. Returns the
+/// parameters, the column coefficients, their Jacobian and the residual
+/// sum of squares.
+fn descend(
+    candidates: &[Candidate],
+    selected: &[usize],
+    reduced: &Reduced,
+    theta: DVector<f64>,
+) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
     let (body_theta, body_coefficients, value) = levenberg_marquardt(
         candidates,
-        &bodies,
-        &problem,
-        &theta.select_rows(&nonlinear_parameters),
+        &reduced.bodies,
+        &reduced.problem,
+        &theta.select_rows(&reduced.nonlinear_parameters),
     );
-    let linear = y - x * body_coefficients;
+    let linear = &reduced.y - &reduced.x * body_coefficients;
     let mut theta = theta;
     let (mut at_linear, mut at_body, mut parameter) = (0, 0, 0);
     for &c in selected {
@@ -205,7 +241,7 @@ fn descend(
         parameter += w;
     }
     let (coefficients, jacobian) = coefficients(candidates, selected, &theta);
-    Some((theta, coefficients, jacobian, value))
+    (theta, coefficients, jacobian, value)
 }
 
 /// The exact least-squares step from `theta` when every candidate is
@@ -216,14 +252,13 @@ fn linear(
     a: &DMatrix<f64>,
     b: &DVector<f64>,
     theta: DVector<f64>,
-) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
+) -> (DVector<f64>, DVector<f64>, DMatrix<f64>) {
     let (coef, jacobian) = coefficients(candidates, selected, &theta);
     let gradient = -(jacobian.transpose() * (a * &coef - b));
     let hessian = jacobian.transpose() * a * &jacobian;
     let trial = &theta + pseudo_solve(&hessian, &gradient);
     let (coef, jacobian) = coefficients(candidates, selected, &trial);
-    let value = coef.dot(&(a * &coef)) - 2.0 * coef.dot(b);
-    (trial, coef, jacobian, value)
+    (trial, coef, jacobian)
 }
 
 /// Smallest eigenvalue of the unit-diagonal scaling of the information
