@@ -218,13 +218,13 @@ fn descend(
     reduced: &Reduced,
     theta: DVector<f64>,
 ) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
-    let (body_theta, body_coefficients, value) = levenberg_marquardt(
+    let end = levenberg_marquardt(
         candidates,
         &reduced.bodies,
         &reduced.problem,
         &theta.select_rows(&reduced.nonlinear_parameters),
     );
-    let linear = &reduced.y - &reduced.x * body_coefficients;
+    let linear = &reduced.y - &reduced.x * end.coefficients;
     let mut theta = theta;
     let (mut at_linear, mut at_body, mut parameter) = (0, 0, 0);
     for &c in selected {
@@ -234,14 +234,14 @@ fn descend(
                 theta[k] = linear[at_linear];
                 at_linear += 1;
             } else {
-                theta[k] = body_theta[at_body];
+                theta[k] = end.theta[at_body];
                 at_body += 1;
             }
         }
         parameter += w;
     }
     let (coefficients, jacobian) = coefficients(candidates, selected, &theta);
-    (theta, coefficients, jacobian, value)
+    (theta, coefficients, jacobian, end.sse)
 }
 
 /// The exact least-squares step from `theta` when every candidate is
