@@ -3,7 +3,7 @@
 //! column coefficients: damped Newton steps (Levenberg-Marquardt), each
 //! body's mass solved exactly for the COM the step reaches.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, width};
 use super::shape::point_mass;
@@ -96,7 +96,7 @@ fn project_masses(
     let (mut row, mut col) = (0, 0);
     for &c in selected {
         if let Shape::Body { offset, .. } = &candidates[c].shape {
-            let com = nalgebra::Vector3::new(theta[col + 1], theta[col + 2], theta[col + 3]);
+            let com = Vector3::new(theta[col + 1], theta[col + 2], theta[col + 3]);
             bodies.push((row, col, point_mass(1.0, &com), *offset));
         }
         row += candidates[c].columns.len();
@@ -197,8 +197,6 @@ fn curvature(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::Vector3;
-
     use super::super::kind::Kind;
     use super::*;
 

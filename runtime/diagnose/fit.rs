@@ -1,6 +1,7 @@
 //! Least-squares fits of candidate effects from the moments: linear
-//! candidates exactly, bodies by Levenberg-Marquardt, and how well the
-//! data determine the fitted parameters.
+//! candidates exactly, bodies by Levenberg-Marquardt on what the linear
+//! ones leave (see [`super::descent`]), and how well the data determine the
+//! fitted parameters.
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -22,7 +23,8 @@ pub(super) struct Fit {
 
 /// Fits the `selected` candidates on the groups `keep` accepts: linear
 /// candidates exactly, bodies by Levenberg-Marquardt from the linear fit of
-/// their mass and first-moment columns. `None` when there are no data.
+/// their mass and first-moment columns and from the model's body, the
+/// better end kept. `None` when there are no data.
 pub(super) fn fit(
     m: &Moments,
     candidates: &[Candidate],
