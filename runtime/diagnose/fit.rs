@@ -1,16 +1,15 @@
 //! Least-squares fits of candidate effects from the moments: linear
-//! candidates exactly, bodies by Levenberg-Marquardt, and how well the
-//! data determine the fitted parameters.
+//! candidates exactly, bodies by Levenberg-Marquardt on what the linear
+//! ones leave (see [`super::descent`]), and how well the data determine the
+//! fitted parameters.
 
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, columns_of, width};
+use super::descent::{coefficients, levenberg_marquardt};
 use super::moments::Moments;
 use super::settings::COLLINEAR;
-
-/// Smallest squared Cholesky pivot of a unit-diagonal matrix that
-/// [`pseudo_solve`] trusts; below it the SVD decides what is singular.
-pub(super) const CHOLESKY_PIVOT: f64 = 1e-8;
+use super::solve::{SquareRoot, pseudo_solve, pseudo_solve_columns};
 
 /// A least-squares fit of some candidates.
 pub(super) struct Fit {
@@ -22,76 +21,10 @@ pub(super) struct Fit {
     pub(super) information: DMatrix<f64>,
 }
 
-/// Solves H x = g for a symmetric positive semi-definite H by the
-/// pseudo-inverse of its unit-diagonal scaling (minimum-norm in scaled
-/// parameters when H is singular). A Cholesky factor whose pivots all stay
-/// above [`CHOLESKY_PIVOT`] (a well-conditioned H, nearly every call) solves
-/// it at a fraction of the SVD's cost, with the same solution.
-pub(super) fn pseudo_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> DVector<f64> {
-    let x = pseudo_solve_columns(h, &DMatrix::from_column_slice(g.len(), 1, g.as_slice()));
-    DVector::from_column_slice(x.as_slice())
-}
-
-/// [`pseudo_solve`] for each column of `g`, with one factorization.
-pub(super) fn pseudo_solve_columns(h: &DMatrix<f64>, g: &DMatrix<f64>) -> DMatrix<f64> {
-    let k = h.nrows();
-    if k == 0 {
-        return DMatrix::zeros(0, g.ncols());
-    }
-    let d = DVector::from_fn(k, |i, _| {
-        let v = h[(i, i)];
-        if v > 0.0 { v.sqrt() } else { 1.0 }
-    });
-    let scaled = DMatrix::from_fn(k, k, |i, j| h[(i, j)] / (d[i] * d[j]));
-    let rhs = DMatrix::from_fn(k, g.ncols(), |i, j| g[(i, j)] / d[i]);
-    let unscale = |x: DMatrix<f64>| DMatrix::from_fn(k, x.ncols(), |i, j| x[(i, j)] / d[i]);
-    if let Some(cholesky) = scaled.clone().cholesky() {
-        let l = cholesky.l_dirty();
-        if (0..k).all(|i| l[(i, i)] * l[(i, i)] > CHOLESKY_PIVOT) {
-            return unscale(cholesky.solve(&rhs));
-        }
-    }
-    // Non-finite or non-converging: no solution (the callers check their
-    // data for finiteness first, so this is a guard, not a path).
-    let Some(svd) = crate::kernels::svd(scaled) else {
-        return DMatrix::zeros(k, g.ncols());
-    };
-    let tolerance = 1e-12 * svd.singular_values.max().max(f64::MIN_POSITIVE);
-    svd.solve(&rhs, tolerance)
-        .map(unscale)
-        .unwrap_or_else(|_| DMatrix::zeros(k, g.ncols()))
-}
-
-/// Column coefficients and their Jacobian for concatenated parameters.
-pub(super) fn coefficients(
-    candidates: &[Candidate],
-    selected: &[usize],
-    theta: &DVector<f64>,
-) -> (DVector<f64>, DMatrix<f64>) {
-    let columns: usize = selected.iter().map(|&c| candidates[c].columns.len()).sum();
-    let mut coefficients = DVector::zeros(columns);
-    let mut jacobian = DMatrix::zeros(columns, theta.len());
-    let (mut row, mut col) = (0, 0);
-    for &c in selected {
-        let candidate = &candidates[c];
-        let w = width(candidate);
-        let parameters: Vec<f64> = theta.rows(col, w).iter().copied().collect();
-        let (values, d) = candidate.shape.map(&parameters);
-        for (k, v) in values.iter().enumerate() {
-            coefficients[row + k] = *v;
-        }
-        jacobian
-            .view_mut((row, col), (values.len(), w))
-            .copy_from(&d);
-        row += values.len();
-        col += w;
-    }
-    (coefficients, jacobian)
-}
-
 /// Fits the `selected` candidates on the groups `keep` accepts: linear
 /// candidates exactly, bodies by Levenberg-Marquardt from the linear fit of
-/// their mass and first-moment columns. `None` when there are no data.
+/// their mass and first-moment columns and from the model's body, the
+/// better end kept. `None` when there are no data.
 pub(super) fn fit(
     m: &Moments,
     candidates: &[Candidate],
@@ -99,7 +32,8 @@ pub(super) fn fit(
     keep: impl Fn(usize) -> bool,
 ) -> Option<Fit> {
     let columns = columns_of(candidates, selected);
-    let (a, b) = m.normal_equations(&columns, keep);
+    let (a, b) = m.normal_equations(&columns, &keep);
+    let rr = m.residual_sum(&keep);
     if a.nrows() > 0 && a.diagonal().iter().all(|v| *v == 0.0) {
         return None;
     }
@@ -184,11 +118,18 @@ pub(super) fn fit(
     if other_start {
         starts.push(DVector::from_vec(modelled));
     }
-    let (theta, coef, jacobian) = starts
-        .into_iter()
-        .map(|start| descend(candidates, selected, &a, &b, start))
-        .min_by(|x, y| x.3.total_cmp(&y.3))
-        .map(|(t, c, j, _)| (t, c, j))?;
+    let nonlinear = selected.iter().any(|&c| !candidates[c].shape.is_linear());
+    let (theta, coef, jacobian) = if nonlinear {
+        let reduced = reduce(candidates, selected, (&a, &b, rr))?;
+        starts
+            .into_iter()
+            .map(|start| descend(candidates, selected, &reduced, start))
+            .min_by(|x, y| x.3.total_cmp(&y.3))
+            .map(|(t, c, j, _)| (t, c, j))?
+    } else {
+        let start = starts.into_iter().next()?;
+        linear(candidates, selected, &a, &b, start)
+    };
     let information = jacobian.transpose() * &a * &jacobian;
     Some(Fit {
         theta,
@@ -197,22 +138,32 @@ pub(super) fn fit(
     })
 }
 
-/// The least-squares fit from `theta` on the normal equations (a, b): the
-/// linear candidates' coefficients eliminated exactly (variable
+/// The least-squares problem of the nonlinear candidates' coefficients
+/// alone: the linear candidates' coefficients eliminated exactly (variable
 /// projection: for given nonlinear coefficients the best linear ones solve
-/// a linear system, which leaves normal equations in the nonlinear
-/// coefficients alone, their Schur complement), Levenberg-Marquardt on
-/// what is left. Linear parameters collinear with a body's columns (a
-/// neighbouring link's whole-body error) made the joint descent crawl.
-/// Returns the parameters, the column coefficients, their Jacobian and the
-/// objective.
-fn descend(
+/// a linear system, which leaves a least-squares problem in the nonlinear
+/// coefficients alone, their Schur complement). Linear parameters collinear
+/// with a body's columns (a neighbouring link's whole-body error) made a
+/// joint descent crawl. The same for every start of a fit.
+struct Reduced {
+    /// The nonlinear candidates, in selection order, and where their
+    /// parameters sit among all of them.
+    bodies: Vec<usize>,
+    nonlinear_parameters: Vec<usize>,
+    /// The best linear coefficients are y - x c for nonlinear coefficients c.
+    x: DMatrix<f64>,
+    y: DVector<f64>,
+    problem: SquareRoot,
+}
+
+/// The [`Reduced`] problem of normal equations (a, b) with the residual's
+/// sum of squares `rr`; `None` when every candidate is linear or the
+/// problem is not finite.
+fn reduce(
     candidates: &[Candidate],
     selected: &[usize],
-    a: &DMatrix<f64>,
-    b: &DVector<f64>,
-    theta: DVector<f64>,
-) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
+    (a, b, rr): (&DMatrix<f64>, &DVector<f64>, f64),
+) -> Option<Reduced> {
     let (mut linear_columns, mut nonlinear_columns) = (Vec::new(), Vec::new());
     let mut nonlinear_parameters = Vec::new();
     let (mut column, mut parameter) = (0, 0);
@@ -226,34 +177,56 @@ fn descend(
         }
         (column, parameter) = (column + n, parameter + w);
     }
-    if nonlinear_columns.is_empty() || linear_columns.is_empty() {
-        return levenberg_marquardt(candidates, selected, a, b, theta);
+    if nonlinear_columns.is_empty() {
+        return None;
     }
     let block = |rows: &[usize], columns: &[usize]| a.select_rows(rows).select_columns(columns);
     let a_ll = block(&linear_columns, &linear_columns);
     let a_ln = block(&linear_columns, &nonlinear_columns);
     let mut rhs = a_ln.clone().insert_column(a_ln.ncols(), 0.0);
-    rhs.set_column(a_ln.ncols(), &b.select_rows(&linear_columns));
+    let b_l = b.select_rows(&linear_columns);
+    rhs.set_column(a_ln.ncols(), &b_l);
     // A_ll^+ [A_ln, b_l]: the best linear coefficients are y - X c_n.
     let solved = pseudo_solve_columns(&a_ll, &rhs);
     let x = solved.columns(0, a_ln.ncols()).into_owned();
     let y = solved.column(a_ln.ncols()).into_owned();
     let a_nl = a_ln.transpose();
-    let reduced_a = block(&nonlinear_columns, &nonlinear_columns) - &a_nl * &x;
-    let reduced_b = b.select_rows(&nonlinear_columns) - &a_nl * &y;
-    let bodies: Vec<usize> = selected
+    let problem = SquareRoot::new(
+        block(&nonlinear_columns, &nonlinear_columns) - &a_nl * &x,
+        b.select_rows(&nonlinear_columns) - &a_nl * &y,
+        rr - b_l.dot(&y),
+    )?;
+    let bodies = selected
         .iter()
         .copied()
         .filter(|&c| !candidates[c].shape.is_linear())
         .collect();
-    let (body_theta, body_coefficients, _, _) = levenberg_marquardt(
+    Some(Reduced {
+        bodies,
+        nonlinear_parameters,
+        x,
+        y,
+        problem,
+    })
+}
+
+/// The least-squares fit from `theta`: Levenberg-Marquardt on the reduced
+/// problem, then the linear coefficients that go with it. Returns the
+/// parameters, the column coefficients, their Jacobian and the residual
+/// sum of squares.
+fn descend(
+    candidates: &[Candidate],
+    selected: &[usize],
+    reduced: &Reduced,
+    theta: DVector<f64>,
+) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
+    let end = levenberg_marquardt(
         candidates,
-        &bodies,
-        &reduced_a,
-        &reduced_b,
-        theta.select_rows(&nonlinear_parameters),
+        &reduced.bodies,
+        &reduced.problem,
+        &theta.select_rows(&reduced.nonlinear_parameters),
     );
-    let linear = y - x * body_coefficients;
+    let linear = &reduced.y - &reduced.x * end.coefficients;
     let mut theta = theta;
     let (mut at_linear, mut at_body, mut parameter) = (0, 0, 0);
     for &c in selected {
@@ -263,115 +236,31 @@ fn descend(
                 theta[k] = linear[at_linear];
                 at_linear += 1;
             } else {
-                theta[k] = body_theta[at_body];
+                theta[k] = end.theta[at_body];
                 at_body += 1;
             }
         }
         parameter += w;
     }
     let (coefficients, jacobian) = coefficients(candidates, selected, &theta);
-    let value = coefficients.dot(&(a * &coefficients)) - 2.0 * coefficients.dot(b);
-    (theta, coefficients, jacobian, value)
+    (theta, coefficients, jacobian, end.sse)
 }
 
-/// Levenberg-Marquardt from `theta` on the normal equations (a, b); one
-/// exact step when every candidate is linear.
-fn levenberg_marquardt(
+/// The exact least-squares step from `theta` when every candidate is
+/// linear (the parameters are the coefficients).
+fn linear(
     candidates: &[Candidate],
     selected: &[usize],
     a: &DMatrix<f64>,
     b: &DVector<f64>,
-    mut theta: DVector<f64>,
-) -> (DVector<f64>, DVector<f64>, DMatrix<f64>, f64) {
-    let objective = |coefficients: &DVector<f64>| {
-        coefficients.dot(&(a * coefficients)) - 2.0 * coefficients.dot(b)
-    };
-    let nonlinear = selected.iter().any(|&c| !candidates[c].shape.is_linear());
-    let (mut coef, mut jacobian) = coefficients(candidates, selected, &theta);
-    let mut value = objective(&coef);
-    let mut lambda = 1e-3;
-    for _ in 0..200 {
-        let excess = a * &coef - b;
-        let gradient = -(jacobian.transpose() * &excess);
-        let hessian = jacobian.transpose() * a * &jacobian;
-        let step = if nonlinear {
-            newton_step(
-                candidates, selected, &theta, &excess, &hessian, &gradient, lambda,
-            )
-        } else {
-            pseudo_solve(&hessian, &gradient)
-        };
-        let trial = &theta + &step;
-        let (trial_coef, trial_jacobian) = coefficients(candidates, selected, &trial);
-        let trial_value = objective(&trial_coef);
-        if !nonlinear {
-            return (trial, trial_coef, trial_jacobian, trial_value);
-        }
-        if trial_value < value {
-            let decrease = value - trial_value;
-            theta = trial;
-            coef = trial_coef;
-            jacobian = trial_jacobian;
-            value = trial_value;
-            lambda = (lambda / 3.0).max(1e-12);
-            // Converged when a step gains less than 1e-10 of the objective:
-            // far below the noise of any torque measurement.
-            if decrease <= 1e-10 * value.abs().max(1e-300) {
-                break;
-            }
-        } else {
-            lambda *= 4.0;
-            if lambda > 1e12 {
-                break;
-            }
-        }
-    }
-    (theta, coef, jacobian, value)
-}
-
-/// A damped Newton step: the Gauss-Newton Hessian plus the coefficients'
-/// curvature weighted by the residual's excess (A c - b), with Marquardt's
-/// damping; where that is not positive definite (far from a minimum), the
-/// damped Gauss-Newton step, which always descends.
-fn newton_step(
-    candidates: &[Candidate],
-    selected: &[usize],
-    theta: &DVector<f64>,
-    excess: &DVector<f64>,
-    gauss_newton: &DMatrix<f64>,
-    gradient: &DVector<f64>,
-    lambda: f64,
-) -> DVector<f64> {
-    let damping = DMatrix::from_diagonal(&(gauss_newton.diagonal() * lambda));
-    let exact = gauss_newton + curvature(candidates, selected, theta, excess) + &damping;
-    if let Some(cholesky) = exact.cholesky() {
-        return cholesky.solve(gradient);
-    }
-    pseudo_solve(&(gauss_newton + damping), gradient)
-}
-
-/// Block-diagonal sum of each coefficient's Hessian in theta weighted by
-/// `weights` (one per coefficient, [`columns_of`] order).
-fn curvature(
-    candidates: &[Candidate],
-    selected: &[usize],
-    theta: &DVector<f64>,
-    weights: &DVector<f64>,
-) -> DMatrix<f64> {
-    let mut total = DMatrix::zeros(theta.len(), theta.len());
-    let (mut row, mut col) = (0, 0);
-    for &c in selected {
-        let candidate = &candidates[c];
-        let w = width(candidate);
-        let n = candidate.columns.len();
-        let parameters: Vec<f64> = theta.rows(col, w).iter().copied().collect();
-        let weights: Vec<f64> = weights.rows(row, n).iter().copied().collect();
-        let block = candidate.shape.curvature(&parameters, &weights);
-        total.view_mut((col, col), (w, w)).copy_from(&block);
-        row += n;
-        col += w;
-    }
-    total
+    theta: DVector<f64>,
+) -> (DVector<f64>, DVector<f64>, DMatrix<f64>) {
+    let (coef, jacobian) = coefficients(candidates, selected, &theta);
+    let gradient = -(jacobian.transpose() * (a * &coef - b));
+    let hessian = jacobian.transpose() * a * &jacobian;
+    let trial = &theta + pseudo_solve(&hessian, &gradient);
+    let (coef, jacobian) = coefficients(candidates, selected, &trial);
+    (trial, coef, jacobian)
 }
 
 /// Smallest eigenvalue of the unit-diagonal scaling of the information

@@ -6,8 +6,9 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::candidate::{Candidate, Shape, label, width};
-use super::fit::{fit, pseudo_solve};
+use super::fit::fit;
 use super::moments::Moments;
+use super::solve::pseudo_solve;
 
 /// |correlation| of two parameter estimates above which they are reported
 /// as confounded.

@@ -137,6 +137,12 @@ impl Moments {
         }
     }
 
+    /// The residual's sum of squares over the groups `keep` accepts.
+    pub(super) fn residual_sum(&self, keep: impl Fn(usize) -> bool) -> f64 {
+        let kept = self.rr.iter().enumerate().filter(|(g, _)| keep(*g));
+        kept.map(|(_, joints)| joints.iter().sum::<f64>()).sum()
+    }
+
     /// The scoring columns of fitted `columns` (see `Candidate::applied`).
     pub(super) fn applied(&self, columns: &[usize]) -> Vec<usize> {
         columns.iter().map(|&c| self.applied[c]).collect()
@@ -144,15 +150,25 @@ impl Moments {
 
     /// Residual sum of squares of group g, joint j after subtracting X theta.
     pub(super) fn sse(&self, g: usize, j: usize, columns: &[usize], theta: &DVector<f64>) -> f64 {
-        // Gathered directly: selecting rows first copies whole rows of the
-        // moment matrix (hundreds of columns for a 7-joint arm).
         let (xx, xr) = (&self.xx[g][j], &self.xr[g][j]);
-        let a = DMatrix::from_fn(columns.len(), columns.len(), |r, c| {
-            xx[(columns[r], columns[c])]
-        });
-        let b = DVector::from_fn(columns.len(), |r, _| xr[columns[r]]);
+        // Only the columns with a coefficient that are nonzero on this
+        // joint's rows count (a column with no square has no product
+        // either): most of a fit's columns are other joints' own, so this
+        // is a few of them, read in place.
+        let active: Vec<(usize, f64)> = columns
+            .iter()
+            .zip(theta.iter())
+            .filter(|&(&k, &t)| t != 0.0 && xx[(k, k)] != 0.0)
+            .map(|(&k, &t)| (k, t))
+            .collect();
+        let (mut linear, mut quadratic) = (0.0, 0.0);
+        for &(k, t) in &active {
+            linear += t * xr[k];
+            let row: f64 = active.iter().map(|&(l, u)| xx[(l, k)] * u).sum();
+            quadratic += t * row;
+        }
         // Clamped: rounding can push a near-perfect fit's sum below zero.
-        (self.rr[g][j] - 2.0 * theta.dot(&b) + theta.dot(&(a * theta))).max(0.0)
+        (self.rr[g][j] - 2.0 * linear + quadratic).max(0.0)
     }
 }
 

@@ -6,12 +6,13 @@ use super::admit::{MASS_FACTOR, admits, levels_hold, physical, searched_threshol
 use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::companion::complete_friction;
-use super::fit::{fit, identifiability, pseudo_solve};
+use super::fit::{fit, identifiability};
 use super::gain::{Gain, relative_gain};
 use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
+use super::solve::pseudo_solve;
 use crate::parallel::map_in_order;
 
 /// Whether a body candidate's mass and COM are identifiable together

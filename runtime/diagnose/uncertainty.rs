@@ -4,8 +4,9 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::candidate::{Candidate, Shape, columns_of};
-use super::fit::{Fit, fit, pseudo_solve};
+use super::fit::{Fit, fit};
 use super::moments::{Moments, sse_per_joint};
+use super::solve::pseudo_solve;
 
 /// Full-data fit with the standard errors of its parameters.
 pub(super) fn fit_all(

@@ -15,7 +15,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::digits::sig;
-use super::fit::pseudo_solve;
+use super::solve::pseudo_solve;
 use super::stacked::{GENERIC_FEATURES, Stacked};
 
 /// Share of a joint's remaining residual power that generic features must

@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::super::digits::sig;
-use super::super::fit::pseudo_solve;
+use super::super::solve::pseudo_solve;
 use super::super::stacked::GENERIC_FEATURES;
 use super::super::stacked::Stacked;
 use super::super::uncertainty::student_t975;
