@@ -46,13 +46,24 @@ pub(super) struct Candidate {
 /// A linear candidate on the first joint with one column (unit tests).
 #[cfg(test)]
 pub(super) fn linear(kind: Kind, column: DVector<f64>) -> Candidate {
+    on_joint(kind, 0, "value", column)
+}
+
+/// A linear candidate on joint `j` (0-based) with one column, its
+/// coefficient the parameter `name`.
+pub(super) fn on_joint(
+    kind: Kind,
+    j: usize,
+    name: &'static str,
+    column: DVector<f64>,
+) -> Candidate {
     Candidate {
         kind,
-        joint: Some(0),
+        joint: Some(j),
         link: None,
         modelled: [0.0; 10],
         extent: f64::INFINITY,
-        names: vec!["value"],
+        names: vec![name],
         columns: vec![column],
         applied: None,
         shape: Shape::Linear,

@@ -13,7 +13,7 @@
 use nalgebra::DVector;
 
 use super::admit::significant;
-use super::candidate::{Candidate, Shape, label};
+use super::candidate::{Candidate, label, on_joint};
 use super::fit::fit;
 use super::heldout::worst_rise;
 use super::kind::Kind;
@@ -193,19 +193,7 @@ fn smooth_columns(data: &Stacked, j: usize) -> impl Iterator<Item = Candidate> +
 
 /// A column on joint `j` fitted beside the named effects, never named.
 fn nuisance(j: usize, column: DVector<f64>) -> Candidate {
-    Candidate {
-        kind: Kind::ViscousFriction,
-        joint: Some(j),
-        link: None,
-        modelled: [0.0; 10],
-        extent: f64::INFINITY,
-        names: vec!["smooth"],
-        columns: vec![column],
-        applied: None,
-        shape: Shape::Linear,
-        settings: Vec::new(),
-        searched: 1,
-    }
+    on_joint(Kind::ViscousFriction, j, "smooth", column)
 }
 
 #[cfg(test)]
