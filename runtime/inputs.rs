@@ -11,6 +11,7 @@ use crate::args::AngleArg;
 use crate::preprocess::{Filter, Pipeline, Preprocess, Preset};
 use crate::ranges;
 use crate::rosbag::{BagOptions, JointOrder, JointStates, read_joint_states};
+pub use crate::shell::shell_word;
 use crate::trajectory::{ReadOptions, Trajectory, TrajectoryError, read_csv, uniform};
 
 /// The model's joint names, base first, when the command has a model.
@@ -53,19 +54,6 @@ pub struct InputArgs {
           value_parser = ranges::real(-crate::corrections::MAX_DELAY, crate::corrections::MAX_DELAY, false,
           "a torque a second late is another recording"))]
     pub torque_delay: Option<f64>,
-}
-
-/// `word` quoted for a POSIX shell when it needs it.
-pub fn shell_word(word: &str) -> String {
-    if !word.is_empty()
-        && word
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@".contains(c))
-    {
-        word.to_string()
-    } else {
-        format!("'{}'", word.replace('\'', "'\\''"))
-    }
 }
 
 pub fn parse_mapping(text: &str) -> Result<(String, String), String> {

@@ -30,6 +30,7 @@ pub mod ranges;
 pub mod report;
 pub mod rosbag;
 pub mod seeds;
+pub mod shell;
 pub mod sim;
 pub mod study;
 pub mod trajectory;

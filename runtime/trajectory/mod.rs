@@ -62,13 +62,16 @@ pub enum TrajectoryError {
     MissingColumn { path: PathBuf, column: String },
     /// A header names a column outside the contract.
     #[error(
-        "{}: unexpected column '{column}' in the header (line 1); expected {expected}; rename it or pass it as ignored",
+        "{}: unexpected column '{column}' in the header (line 1); expected {expected}; {advice}",
         .path.display()
     )]
     UnexpectedColumn {
         path: PathBuf,
         column: String,
         expected: String,
+        /// What to do: rename or ignore the column, or, for a header cell
+        /// that holds other delimiters, write the file comma-separated.
+        advice: String,
     },
     /// Two header cells map to the same contract column.
     #[error("{}: column '{column}' appears twice in the header (line 1)", .path.display())]

@@ -219,6 +219,7 @@ pub(super) fn classify_columns(
             path: path.to_owned(),
             column: raw.to_owned(),
             expected: schema.expected.to_owned(),
+            advice: unexpected_advice(raw),
         };
         if !seen.insert(name.to_owned()) {
             return Err(TrajectoryError::DuplicateColumn {
@@ -235,6 +236,23 @@ pub(super) fn classify_columns(
         }
     }
     Ok((time, joints))
+}
+
+/// What to do with a header cell outside the contract: a cell holding
+/// semicolons or tabs is a whole header the comma reader did not split.
+fn unexpected_advice(cell: &str) -> String {
+    match [';', '\t'].into_iter().find(|d| cell.contains(*d)) {
+        Some(d) => format!(
+            "the header is separated by {}: write the file with commas (for example \
+             `tr '{}' ','`, if no value holds a decimal comma)",
+            if d == ';' { "semicolons" } else { "tabs" },
+            if d == ';' { ";" } else { "\\t" },
+        ),
+        None => format!(
+            "rename it, or skip it with `--ignore-column {}`",
+            crate::shell::shell_word(cell)
+        ),
+    }
 }
 
 pub(super) fn missing(path: &Path, column: String) -> TrajectoryError {

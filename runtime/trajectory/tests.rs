@@ -90,9 +90,15 @@ fn reports_header_problems() {
     assert!(msg.contains("missing column 'qd2'"), "{msg}");
     let msg = read_err("extra", "t,q1,qd1,tau1,temp\n0,1,1,1,1\n1,1,1,1,1\n", &opts);
     assert!(
-        msg.contains("unexpected column 'temp'") && msg.contains("ignored"),
+        msg.contains("unexpected column 'temp'") && msg.contains("--ignore-column temp"),
         "{msg}"
     );
+    let msg = read_err("spaced", "t,q1,qd1,tau1,motor temp\n0,1,1,1,1\n", &opts);
+    assert!(msg.contains("--ignore-column 'motor temp'"), "{msg}");
+    let msg = read_err("semicolons", "t;q1;qd1;tau1\n0;1;1;1\n1;1;1;1\n", &opts);
+    assert!(msg.contains("separated by semicolons"), "{msg}");
+    let msg = read_err("tabs", "t\tq1\tqd1\ttau1\n0\t1\t1\t1\n", &opts);
+    assert!(msg.contains("separated by tabs"), "{msg}");
     let msg = read_err("dup", "t,q1,q1,qd1,tau1\n0,1,1,1,1\n1,1,1,1,1\n", &opts);
     assert!(msg.contains("'q1' appears twice"), "{msg}");
     let msg = read_err("partial-qdd", "t,q1,q2,qd1,qd2,qdd1,tau1,tau2\n", &opts);
