@@ -328,7 +328,9 @@ mod tests {
         let twice = excursion(&REVOLUTE, (100.0, 100.0), 0, None).unwrap();
         assert_eq!(twice.reading, Reading::BeyondLimits);
         assert!(
-            twice.message.starts_with("joint 1: position 100 rad leaves"),
+            twice
+                .message
+                .starts_with("joint 1: position 100 rad leaves"),
             "{}",
             twice.message
         );
@@ -358,9 +360,6 @@ mod tests {
     fn ranges_span_every_matrix() {
         let a = DMatrix::from_row_slice(2, 2, &[1.0, -1.0, 3.0, 0.5]);
         let b = DMatrix::from_row_slice(1, 1, &[-2.0]);
-        assert_eq!(
-            ranges(&[&a, &b]),
-            [Some((-2.0, 3.0)), Some((-1.0, 0.5))]
-        );
+        assert_eq!(ranges(&[&a, &b]), [Some((-2.0, 3.0)), Some((-1.0, 0.5))]);
     }
 }

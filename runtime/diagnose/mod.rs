@@ -134,7 +134,9 @@ use heldout::{Scoring, cv_mse, cv_mse_per_joint};
 pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
-pub use sanity::{Check, Exchange, Finding, Gated, Refusal, Sanity, positions as checks_as_logged, refuse};
+pub use sanity::{
+    Check, Exchange, Finding, Gated, Refusal, Sanity, positions as checks_as_logged, refuse,
+};
 pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
 pub use stacked::Layout;
 pub use unconstrained::Unconstrained;
