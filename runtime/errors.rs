@@ -20,9 +20,10 @@ pub fn message(error: &anyhow::Error) -> String {
 /// Exit code of a failed command: bad input or arguments.
 pub const BAD_INPUT: u8 = 2;
 
-/// Exit code of `sdnn diagnose` when the recordings fail its sanity gate:
-/// nothing is named, and the data (a torque's sign, the angles' unit, the
-/// joint order), not the command line, need checking.
+/// Exit code of `sdnn diagnose` and `sdnn evaluate` when the recordings
+/// fail the sanity gate: nothing is named or evaluated, and the data (a
+/// torque's sign, the angles' unit, the joint order), not the command
+/// line, need checking.
 pub const FAILED_SANITY_GATE: u8 = 3;
 
 /// The exit code of `error`.

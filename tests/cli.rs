@@ -286,3 +286,93 @@ fn an_interrupt_leaves_no_temporary_files() {
         }
     }
 }
+
+/// Positions far beyond the description's limits are still computed (the
+/// result is well defined) but warned about, naming the joint, its value
+/// and the limits, with `--angles deg` when they read as degrees.
+#[test]
+fn pointwise_commands_warn_of_positions_beyond_the_limits() {
+    let dir = Dir::new();
+    let inside = dir.write("inside.csv", "q1,q2,q3\n0.1,0.2,0.3\n");
+    let degrees = dir.write("degrees.csv", "q1,q2,q3\n30,0.2,0.3\n");
+    let forces = dir.write(
+        "forces.csv",
+        "q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n30,0.2,0.3,0,0,0,0,0,0\n",
+    );
+    let states = dir.write(
+        "states.csv",
+        "q1,q2,q3,qd1,qd2,qd3,qdd1,qdd2,qdd3\n30,0.2,0.3,0,0,0,0,0,0\n",
+    );
+    let run = |command: &str, input: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![command, "--model", "kinova_gen3_lite_3dof", "--input"];
+        args.push(input.to_str().unwrap());
+        args.extend(extra);
+        let run = sdnn(&args);
+        let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert!(run.status.success(), "{command}: {stderr}");
+        assert_eq!(run.stdout.iter().filter(|&&b| b == b'\n').count(), 2);
+        stderr
+    };
+    assert_eq!(run("pose", &inside, &[]), "");
+    for (command, input) in [("pose", &degrees), ("tau", &states), ("qdd", &forces)] {
+        let stderr = run(command, input, &[]);
+        assert!(
+            stderr.contains("warning: ")
+                && stderr.contains("joint 1: position 30.0 rad leaves")
+                && stderr.contains("limits [-2.69, 2.69] rad")
+                && stderr.contains("look like degrees: pass `--angles deg`"),
+            "{command}: {stderr}"
+        );
+        assert!(!stderr.contains("joint 2"), "{command}: {stderr}");
+    }
+    assert_eq!(run("pose", &degrees, &["--angles", "deg"]), "");
+}
+
+/// `evaluate` runs the sanity gate's position checks: a recording with its
+/// angles (and rates) converted to degrees exits 3 with the hint, as
+/// `diagnose` does, unless `--angles deg` reads it or `--no-sanity-gate`
+/// evaluates it anyway.
+#[test]
+fn evaluate_refuses_a_recording_in_degrees() {
+    let dir = Dir::new();
+    let recording = crate::util::simulated_recordings(&dir, 1, 6.0).remove(0);
+    let text = std::fs::read_to_string(&recording).unwrap();
+    let mut lines = text.lines();
+    let mut converted = format!("{}\n", lines.next().unwrap());
+    for line in lines {
+        let values: Vec<String> = line
+            .split(',')
+            .enumerate()
+            .map(|(k, v)| match k {
+                1..=6 => (v.parse::<f64>().unwrap().to_degrees()).to_string(),
+                _ => v.to_string(),
+            })
+            .collect();
+        converted.push_str(&values.join(","));
+        converted.push('\n');
+    }
+    let degrees = dir.write("degrees.csv", &converted);
+    let evaluate = |path: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["evaluate", "--data", path.to_str().unwrap()];
+        args.extend(extra);
+        sdnn(&args)
+    };
+    assert!(evaluate(&recording, &[]).status.success());
+    let refused = evaluate(&degrees, &[]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(3), "{stderr}");
+    assert!(
+        stderr.contains("nothing is evaluated")
+            && stderr.contains("the angles look like degrees: pass `--angles deg`"),
+        "{stderr}"
+    );
+    assert!(refused.stdout.is_empty());
+    let json = evaluate(&degrees, &["--format", "json"]);
+    assert_eq!(json.status.code(), Some(3));
+    let findings: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
+    assert_eq!(findings["findings"][0]["check"], "degrees");
+    assert!(evaluate(&degrees, &["--angles", "deg"]).status.success());
+    let anyway = evaluate(&degrees, &["--no-sanity-gate"]);
+    assert!(anyway.status.success());
+    assert!(String::from_utf8_lossy(&anyway.stderr).contains("evaluated anyway"));
+}

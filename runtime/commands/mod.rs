@@ -24,11 +24,13 @@ use crate::trajectory::{
 };
 
 mod diagnosis;
+mod evaluation;
 mod excitation;
 mod pointwise;
 mod reproduction;
 
 pub use diagnosis::{DiagnoseArgs, diagnose};
+pub use evaluation::{EvaluateArgs, evaluate};
 pub use excitation::{ExciteArgs, excite};
 pub use pointwise::{PointwiseArgs, pose, qdd, tau};
 pub use reproduction::{
@@ -369,124 +371,6 @@ pub fn train(args: &TrainArgs) -> Result<()> {
         crate::say!("{text}");
     } else {
         crate::output::print_line(&text)?;
-    }
-    Ok(())
-}
-
-#[derive(Debug, Args)]
-pub struct EvaluateArgs {
-    /// Compiled model (the analytical model, or the nominal model with --nn).
-    #[arg(long, default_value = DEFAULT_NOMINAL)]
-    pub model: String,
-    /// Measured CSV files.
-    #[arg(long, required = true, num_args = 1..)]
-    pub data: Vec<PathBuf>,
-    /// Evaluate this trained network instead of the analytical model.
-    #[arg(long)]
-    pub nn: Option<PathBuf>,
-    #[command(flatten)]
-    pub input: InputArgs,
-    #[command(flatten)]
-    pub filter: FilterArgs,
-    #[arg(long, value_enum, default_value_t)]
-    pub format: Format,
-}
-
-pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
-    let model = find_model(&args.model)?;
-    check_angle_units(model, args.input.angles.into())?;
-    let network = args.nn.as_ref().map(Mlp::load).transpose()?;
-    if let (Some(n), Some(path)) = (&network, &args.nn) {
-        let dof = model.dof();
-        if n.n_inputs() != 3 * dof || n.n_outputs() != dof {
-            bail!(
-                "{}: the network maps {} inputs to {} torques; model `{}` has {dof} joints \
-                 (3 x {dof} inputs q, qd, qdd and {dof} torques): pass the --model it was trained for",
-                path.display(),
-                n.n_inputs(),
-                n.n_outputs(),
-                model.name()
-            );
-        }
-    }
-    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
-    let pipeline = args.filter.resolve(&recordings)?;
-    let mut compared = Vec::new();
-    for (raw, path) in recordings.iter().zip(&args.data) {
-        compared.push(
-            pipeline
-                .compare(raw, |traj| match &network {
-                    Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
-                    None => model_torques(model, traj),
-                })
-                .with_context(|| path.display().to_string())?,
-        );
-    }
-    let stacked = |f: fn(&Compared) -> &DMatrix<f64>| {
-        study::stack(compared.iter().map(|c| f(c).clone()).collect())
-    };
-    let (p, m) = (stacked(|c| &c.predicted), stacked(|c| &c.measured));
-    let mse = mse_per_joint(&p, &m);
-    // Each recording weighs as in `mse` (by its kept samples, i.e. by its
-    // duration), whatever rate it was logged at.
-    let weights: Vec<f64> = compared.iter().map(|c| c.measured.nrows() as f64).collect();
-    let total: f64 = weights.iter().sum::<f64>().max(1.0);
-    let mut mse_as_logged = vec![0.0; model.dof()];
-    for (c, w) in compared.iter().zip(&weights) {
-        let each = mse_per_joint(&c.predicted_unfiltered, &c.measured_as_logged);
-        for (sum, v) in mse_as_logged.iter_mut().zip(each) {
-            *sum += v * w / total;
-        }
-    }
-    // `--torque-scale J=S` divided joint J's torque by S when it was read:
-    // against the torque as logged the error is S times the corrected one
-    // (the prediction scaled as the sensor scales), so the as-logged MSE
-    // stays comparable with and without the correction.
-    for &(joint, scale) in &args.input.torque_scales {
-        if let Some(mse) = mse_as_logged.get_mut(joint - 1) {
-            *mse *= scale * scale;
-        }
-    }
-    let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
-    let name = args
-        .nn
-        .as_ref()
-        .map_or(model.name().to_string(), |p| p.display().to_string());
-    match args.format {
-        Format::Json => crate::output::print_line(
-            &serde_json::json!({
-                "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
-                "mse_torque_as_logged": mse_as_logged, "preprocessing": pipeline,
-            })
-            .to_string(),
-        )?,
-        Format::Text => {
-            use std::fmt::Write as _;
-            let mut text = format!("model {name}: {} samples\n", m.nrows());
-            let _ = writeln!(text, "{}", pipeline.summary());
-            let levers = crate::dynamics::joint_levers(model);
-            let unit = |j: usize| match levers.get(j) {
-                Some(&l) if l != 1.0 => "N^2",
-                _ => "N m^2",
-            };
-            for (j, v) in mse.iter().enumerate() {
-                let _ = writeln!(
-                    text,
-                    "  joint {}: MSE {v:.6} {} (against the torque as logged: {:.6})",
-                    j + 1,
-                    unit(j),
-                    mse_as_logged[j]
-                );
-            }
-            let mixed = (0..mse.len()).any(|j| unit(j) != unit(0));
-            let mean_unit = if mixed {
-                "(N m^2 and N^2 mixed)"
-            } else {
-                unit(0)
-            };
-            let _ = writeln!(text, "  mean:    MSE {mean:.6} {mean_unit}");
-            crate::output::print(&text)?;
-        }
     }
     Ok(())
 }

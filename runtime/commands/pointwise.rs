@@ -54,6 +54,24 @@ impl PointwiseArgs {
         Ok((model, options))
     }
 
+    /// Warns, on standard error, of joints whose positions leave the
+    /// description's limits (the gate's reading of an excursion: degrees,
+    /// a turn off, another joint's column); the results are still
+    /// computed, as they are well defined there.
+    fn warn_beyond_limits(&self, model: &dyn Dynamics, q: &DMatrix<f64>, units: AngleUnit) {
+        let ranges = crate::limits::ranges(&[q]);
+        let excursions = crate::limits::excursions(model, &ranges, units);
+        let input = self.input.display();
+        for e in &excursions {
+            crate::say!("warning: {input}: {}", e.message);
+        }
+        if units == AngleUnit::Radians
+            && let Some(hint) = crate::limits::degrees_as_a_whole(model, &ranges, &excursions)
+        {
+            crate::say!("warning: {input}: {hint}");
+        }
+    }
+
     fn output(&self) -> Option<&std::path::Path> {
         self.output
             .as_deref()
@@ -76,6 +94,7 @@ fn row(m: &DMatrix<f64>, r: usize) -> Vec<f64> {
 pub fn tau(args: &PointwiseArgs) -> Result<()> {
     let (model, options) = args.open()?;
     let states = read_states_csv(&args.input, &options)?;
+    args.warn_beyond_limits(model, states.q(), options.units.angles);
     let mut tau = DMatrix::zeros(states.len(), model.dof());
     for r in 0..states.len() {
         let t = model.tau(
@@ -92,6 +111,7 @@ pub fn tau(args: &PointwiseArgs) -> Result<()> {
 pub fn qdd(args: &PointwiseArgs) -> Result<()> {
     let (model, options) = args.open()?;
     let [q, qd, tau] = read_forward_csv(&args.input, &options)?;
+    args.warn_beyond_limits(model, &q, options.units.angles);
     let scale = match options.units.angles {
         AngleUnit::Degrees => 180.0 / std::f64::consts::PI,
         AngleUnit::Radians => 1.0,
@@ -112,6 +132,7 @@ pub fn qdd(args: &PointwiseArgs) -> Result<()> {
 pub fn pose(args: &PointwiseArgs) -> Result<()> {
     let (model, options) = args.open()?;
     let q = read_positions_csv(&args.input, &options)?;
+    args.warn_beyond_limits(model, &q, options.units.angles);
     let mut poses = DMatrix::zeros(q.nrows(), 12);
     for r in 0..q.nrows() {
         let pose = model.tip_pose(&row(&q, r))?;

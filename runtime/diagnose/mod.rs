@@ -90,7 +90,7 @@ mod companion;
 pub mod data;
 mod descent;
 mod diagnosis;
-mod digits;
+use crate::digits;
 mod dry;
 mod fit;
 mod gain;
@@ -134,7 +134,9 @@ use heldout::{Scoring, cv_mse, cv_mse_per_joint};
 pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
-pub use sanity::{Check, Exchange, Finding, Refusal, Sanity};
+pub use sanity::{
+    Check, Exchange, Finding, Gated, Refusal, Sanity, positions as checks_as_logged, refuse,
+};
 pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
 pub use stacked::Layout;
 pub use unconstrained::Unconstrained;
@@ -191,7 +193,7 @@ pub fn diagnose(
         .unwrap_or(1.0);
     let misplaced = sanity::positions(model, recordings);
     if settings.sanity_gate {
-        sanity::refuse(model, &misplaced)?;
+        sanity::refuse(model, &misplaced, Gated::Diagnosis)?;
     }
     let (data, mut candidates, layout, kept) =
         stack(model, recordings, pipeline, &settings, (None, None))?;
@@ -205,7 +207,7 @@ pub fn diagnose(
     }
     let mut sanity = sanity::torques(model, recordings, &data, &candidates, settings.min_t);
     if settings.sanity_gate {
-        sanity::refuse(model, &sanity.findings)?;
+        sanity::refuse(model, &sanity.findings, Gated::Diagnosis)?;
     }
     sanity.findings.splice(0..0, misplaced);
     let mut chosen = choose(&data, &mut candidates, settings, size);

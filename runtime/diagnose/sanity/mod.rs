@@ -75,19 +75,36 @@ pub struct Finding {
     pub message: String,
 }
 
-/// The recordings failed the gate: nothing is named.
+/// The recordings failed the gate: nothing is named (or evaluated).
 #[derive(Debug, Clone, Serialize, thiserror::Error)]
 pub struct Refusal {
     pub model: String,
     pub findings: Vec<Finding>,
+    /// The command refused, for the wording (not in the JSON).
+    #[serde(skip)]
+    pub gated: Gated,
+}
+
+/// The command the gate stops: `sdnn diagnose`, or `sdnn evaluate`, which
+/// runs the checks on recordings as logged (positions, velocity rate)
+/// because its errors would blame the model for the data's units.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Gated {
+    #[default]
+    Diagnosis,
+    Evaluation,
 }
 
 impl std::fmt::Display for Refusal {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (withheld, anyway) = match self.gated {
+            Gated::Diagnosis => ("no effect is named", "diagnoses"),
+            Gated::Evaluation => ("nothing is evaluated", "evaluates"),
+        };
         write!(
             f,
-            "the recordings fail the sanity checks against model `{}`, so no effect is named \
-             (`--no-sanity-gate` diagnoses anyway):",
+            "the recordings fail the sanity checks against model `{}`, so {withheld} \
+             (`--no-sanity-gate` {anyway} anyway):",
             self.model
         )?;
         for finding in &self.findings {
@@ -121,7 +138,7 @@ pub struct Sanity {
 
 /// The findings of the position and velocity checks (on the recordings as
 /// logged, before preprocessing).
-pub(super) fn positions(model: &dyn Dynamics, recordings: &[Trajectory]) -> Vec<Finding> {
+pub fn positions(model: &dyn Dynamics, recordings: &[Trajectory]) -> Vec<Finding> {
     let mut found = positions::findings(model, recordings);
     found.extend(rates::findings(recordings));
     found
@@ -184,13 +201,14 @@ fn disjoint(mut exchanges: Vec<&Exchange>) -> Vec<&Exchange> {
     kept
 }
 
-/// Refuses the recordings when a check failed.
-pub(super) fn refuse(model: &dyn Dynamics, findings: &[Finding]) -> Result<(), Refusal> {
+/// Refuses the recordings for `gated` when a check failed.
+pub fn refuse(model: &dyn Dynamics, findings: &[Finding], gated: Gated) -> Result<(), Refusal> {
     if findings.is_empty() {
         return Ok(());
     }
     Err(Refusal {
         model: model.name().to_string(),
         findings: findings.to_vec(),
+        gated,
     })
 }

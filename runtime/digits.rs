@@ -1,7 +1,7 @@
 //! Numbers as the report prints them.
 
 /// Three significant digits, without exponent for everyday magnitudes.
-pub(super) fn sig(x: f64) -> String {
+pub fn sig(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
