@@ -15,7 +15,8 @@ use nalgebra::DVector;
 use super::admit::significant;
 use super::candidate::{Candidate, label, on_joint};
 use super::fit::fit;
-use super::heldout::worst_rise;
+use super::gain::relative_gain;
+use super::heldout::{Scoring, cv_mse, worst_rise};
 use super::kind::Kind;
 use super::moments::Moments;
 use super::settings::Settings;
@@ -142,8 +143,9 @@ fn rate_within_groups(data: &Stacked, column: &DVector<f64>) -> DVector<f64> {
     })
 }
 
-/// Whether the named effect at `position` is significant fitted after the
-/// other named effects and the smooth friction columns.
+/// Whether the named effect at `position`, fitted after the other named
+/// effects and the smooth friction columns, passes selection's bars:
+/// significant, and some joint's held-out MSE lower by `min_gain`.
 fn holds(
     m: &Moments,
     list: &[Candidate],
@@ -169,7 +171,15 @@ fn holds(
     let Some(full) = fit(m, list, &trial, |_| true) else {
         return true;
     };
-    significant(m, list, &trial, &full, settings.min_t).is_some()
+    if significant(m, list, &trial, &full, settings.min_t).is_none() {
+        return false;
+    }
+    // Selection's other bar, beside the smooth friction: some joint's
+    // held-out MSE (fitted columns) lower by `min_gain` with the effect.
+    let dof = m.xx.first().map_or(0, Vec::len);
+    let with = cv_mse(m, dof, list, &trial, Scoring::Fitted);
+    let without = cv_mse(m, dof, list, &trial[..trial.len() - 1], Scoring::Fitted);
+    relative_gain(&without, &with, &without).share >= settings.min_gain
 }
 
 fn is_friction(kind: Kind) -> bool {
