@@ -186,19 +186,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
     };
     let mut list = Vec::new();
     for j in 0..n {
-        let one = |kind, name, f: &dyn Fn(usize) -> f64| Candidate {
-            kind,
-            joint: Some(j),
-            link: None,
-            modelled: [0.0; 10],
-            extent: f64::INFINITY,
-            names: vec![name],
-            columns: vec![own(j, f)],
-            applied: None,
-            shape: Shape::Linear,
-            settings: Vec::new(),
-            searched: 1,
-        };
+        let one = |kind, name, f: &dyn Fn(usize) -> f64| on_joint(kind, j, name, own(j, f));
         let at = |kind: Kind| wanted((kind, Some(j), None));
         let mut add = |kind: Kind, build: &dyn Fn() -> Candidate| {
             if at(kind) {
