@@ -3,7 +3,7 @@
 use nalgebra::DVector;
 
 use super::candidate::{Candidate, columns_of};
-use super::fit::fit;
+use super::fit::{fit, fit_near, is_nonlinear};
 use super::moments::Moments;
 
 /// Leave-one-trajectory-out MSE per joint of the residual after the effects.
@@ -65,12 +65,19 @@ pub(super) fn cv_sse_by_group(
         Scoring::Applied => m.applied(&fitted),
         Scoring::Fitted => fitted,
     };
+    // Bodies descend in each fold from the whole data's fit.
+    let near = match is_nonlinear(candidates, selected) {
+        true => Some(fit(m, candidates, selected, |_| true)?.theta),
+        false => None,
+    };
     (0..m.xx.len())
         .map(|g| {
-            let coefficients = if selected.is_empty() {
-                DVector::zeros(0)
-            } else {
-                fit(m, candidates, selected, |h| h != g)?.coefficients
+            let coefficients = match (selected.is_empty(), &near) {
+                (true, _) => DVector::zeros(0),
+                (false, Some(near)) => {
+                    fit_near(m, candidates, selected, |h| h != g, near)?.coefficients
+                }
+                (false, None) => fit(m, candidates, selected, |h| h != g)?.coefficients,
             };
             Some(
                 (0..dof)

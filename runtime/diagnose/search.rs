@@ -110,7 +110,7 @@ fn orthonormal_basis(x: DMatrix<f64>) -> DMatrix<f64> {
         for _ in 0..2 {
             for b in &basis {
                 let along = b.dot(&v);
-                v -= b * along;
+                v.axpy(-along, b, 1.0);
             }
         }
         let left = v.norm();

@@ -76,8 +76,11 @@ struct Fit<'a> {
     inertial: Vec<&'a DVector<f64>>,
     own: Vec<usize>,
     inverse: DMatrix<f64>,
-    /// `cross[i][k]`: sum over samples of joint i's row times joint k's torque.
-    cross: Vec<Vec<DVector<f64>>>,
+    /// `cross[i]` column k: sum over samples of joint i's row times joint
+    /// k's torque.
+    cross: Vec<DMatrix<f64>>,
+    /// The measured torques, samples x joints.
+    torques: DMatrix<f64>,
     energy: Vec<f64>,
 }
 
@@ -92,13 +95,17 @@ impl<'a> Fit<'a> {
             .iter()
             .filter_map(|f| GENERIC_FEATURES.iter().position(|g| g.1 == *f))
             .collect();
+        let n = data.dof;
+        let torques = DMatrix::from_fn(data.measured.len() / n, n, |s, k| data.measured[s * n + k]);
+        let energy = torques.column_iter().map(|t| t.norm_squared()).collect();
         let mut fit = Fit {
             data,
             inertial,
             own,
             inverse: DMatrix::zeros(0, 0),
             cross: Vec::new(),
-            energy: vec![0.0; data.dof],
+            torques,
+            energy,
         };
         fit.accumulate();
         fit
@@ -108,60 +115,64 @@ impl<'a> Fit<'a> {
         self.inertial.len() + self.own.len() * self.data.dof
     }
 
-    /// Regressor row `r` (a joint's equation at one sample) into `x`.
-    fn row(&self, r: usize, x: &mut DVector<f64>) {
-        x.fill(0.0);
-        for (c, column) in self.inertial.iter().enumerate() {
-            x[c] = column[r];
+    /// Joint i's regressor rows (samples x width): the inertial columns at
+    /// its rows and its own features in its block, the other joints' zero.
+    fn rows(&self, i: usize) -> DMatrix<f64> {
+        let n = self.data.dof;
+        let mut x = DMatrix::zeros(self.torques.nrows(), self.width());
+        let at = self.inertial.len() + self.own.len() * i;
+        let own = self.own.iter().map(|&f| &self.data.generic[f]);
+        let columns = self.inertial.iter().copied().enumerate();
+        for (c, column) in columns.chain(own.enumerate().map(|(c, f)| (at + c, f))) {
+            for (s, v) in x.column_mut(c).iter_mut().enumerate() {
+                *v = column[s * n + i];
+            }
         }
-        let at = self.inertial.len() + self.own.len() * (r % self.data.dof);
-        for (c, &f) in self.own.iter().enumerate() {
-            x[at + c] = self.data.generic[f][r];
-        }
+        x
     }
 
     fn accumulate(&mut self) {
-        let (n, p) = (self.data.dof, self.width());
+        let p = self.width();
         let mut a = DMatrix::zeros(p, p);
-        let mut cross = vec![vec![DVector::zeros(p); n]; n];
-        let mut x = DVector::zeros(p);
-        for sample in 0..self.data.measured.len() / n {
-            let torque = |k: usize| self.data.measured[sample * n + k];
-            for (k, e) in self.energy.iter_mut().enumerate() {
-                *e += torque(k).powi(2);
-            }
-            for (i, row) in cross.iter_mut().enumerate() {
-                self.row(sample * n + i, &mut x);
-                a.ger(1.0, &x, &x, 1.0);
-                for (k, c) in row.iter_mut().enumerate() {
-                    c.axpy(torque(k), &x, 1.0);
-                }
-            }
-        }
+        self.cross = (0..self.data.dof)
+            .map(|i| {
+                let x = self.rows(i);
+                a += x.tr_mul(&x);
+                x.tr_mul(&self.torques)
+            })
+            .collect();
         self.inverse = pseudo_inverse(&a);
-        self.cross = cross;
     }
 
     /// The parameters fitted to the torques with joint i's equation given
     /// torque column `target[i]` times `sign[i]`.
     fn solve(&self, target: &[usize], sign: &[f64]) -> DVector<f64> {
         let b = (0..self.data.dof).fold(DVector::zeros(self.width()), |b, i| {
-            b + &self.cross[i][target[i]] * sign[i]
+            b + self.cross[i].column(target[i]) * sign[i]
         });
         &self.inverse * b
     }
 
-    /// The share of torque column `k` (times `sign`) that joint i's
-    /// equations leave unexplained at parameters `theta`.
-    fn unexplained(&self, theta: &DVector<f64>, i: usize, k: usize, sign: f64) -> f64 {
-        let n = self.data.dof;
-        let mut x = DVector::zeros(self.width());
-        let mut sse = 0.0;
-        for sample in 0..self.data.measured.len() / n {
-            self.row(sample * n + i, &mut x);
-            sse += (sign * self.data.measured[sample * n + k] - x.dot(theta)).powi(2);
-        }
-        sse / self.energy[k].max(f64::MIN_POSITIVE)
+    /// For each (parameters, torque column k, sign) of `asked`, the share of
+    /// torque column k (times the sign) that joint i's equations leave
+    /// unexplained at those parameters.
+    fn unexplained(
+        &self,
+        thetas: &[DVector<f64>],
+        i: usize,
+        asked: &[(usize, usize, f64)],
+    ) -> Vec<f64> {
+        let predicted = self.rows(i) * DMatrix::from_columns(thetas);
+        asked
+            .iter()
+            .map(|&(t, k, sign)| {
+                let torque = self.torques.column(k);
+                let left = predicted
+                    .column(t)
+                    .zip_fold(&torque, 0.0, |sse, p, m| sse + (sign * m - p).powi(2));
+                left / self.energy[k].max(f64::MIN_POSITIVE)
+            })
+            .collect()
     }
 }
 
@@ -196,46 +207,57 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
     let fit = Fit::new(data, candidates);
     let order: Vec<usize> = (0..n).collect();
     let plus = vec![1.0; n];
-    let recorded = fit.solve(&order, &plus);
-    let flipped: Vec<DVector<f64>> = (0..n)
-        .map(|j| {
-            let mut sign = plus.clone();
-            sign[j] = -1.0;
-            fit.solve(&order, &sign)
+    let flip = |f: usize| -> Vec<f64> { (0..n).map(|i| if i == f { -1.0 } else { 1.0 }).collect() };
+    let pairs: Vec<(usize, usize)> = (0..n)
+        .flat_map(|j| (j + 1..n).map(move |k| (j, k)))
+        .collect();
+    // The parameters: as recorded, with torque f flipped (1 + f), with the
+    // pair's columns exchanged (1 + n + pair).
+    let mut thetas = vec![fit.solve(&order, &plus)];
+    thetas.extend((0..n).map(|f| fit.solve(&order, &flip(f))));
+    thetas.extend(pairs.iter().map(|&(j, k)| {
+        let mut target = order.clone();
+        target.swap(j, k);
+        fit.solve(&target, &plus)
+    }));
+    // Per joint i: its share as recorded, with each torque flipped, and in
+    // each exchange that moves it (its equation given the other's torque).
+    let shares: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            let mut asked = vec![(0, i, 1.0)];
+            asked.extend((0..n).map(|f| (1 + f, i, flip(f)[i])));
+            asked.extend(pairs.iter().enumerate().filter_map(|(p, &(j, k))| match i {
+                _ if i == j => Some((1 + n + p, k, 1.0)),
+                _ if i == k => Some((1 + n + p, j, 1.0)),
+                _ => None,
+            }));
+            fit.unexplained(&thetas, i, &asked)
         })
         .collect();
-    // Each joint's share as recorded and with any one torque flipped, once
-    // (every pair below uses them).
-    let as_recorded: Vec<f64> = (0..n)
-        .map(|i| fit.unexplained(&recorded, i, i, 1.0))
-        .collect();
-    let flipped_share: Vec<Vec<f64>> = (0..n)
-        .map(|f| {
-            let sign = |i: usize| if i == f { -1.0 } else { 1.0 };
-            (0..n)
-                .map(|i| fit.unexplained(&flipped[f], i, i, sign(i)))
-                .collect()
-        })
-        .collect();
-    let mut found = Vec::new();
-    for j in 0..n {
-        for k in j + 1..n {
-            let mut target = order.clone();
-            target.swap(j, k);
-            let theta = fit.solve(&target, &plus);
-            let exchanged = fit
-                .unexplained(&theta, j, k, 1.0)
-                .max(fit.unexplained(&theta, k, j, 1.0));
-            let as_recorded = as_recorded[j].max(as_recorded[k]);
-            let flip = |f: usize| flipped_share[f][j].max(flipped_share[f][k]);
-            found.push(Exchange {
+    let as_recorded = |i: usize| shares[i][0];
+    let flipped = |f: usize, i: usize| shares[i][1 + f];
+    // Joint i's exchanges follow in pair order after its n + 1 shares.
+    let exchanged = |p: usize, i: usize| {
+        let before = pairs[..p]
+            .iter()
+            .filter(|&&(j, k)| j == i || k == i)
+            .count();
+        shares[i][1 + n + before]
+    };
+    pairs
+        .iter()
+        .enumerate()
+        .map(|(p, &(j, k))| {
+            let exchanged = exchanged(p, j).max(exchanged(p, k));
+            let recorded = as_recorded(j).max(as_recorded(k));
+            let flip = |f: usize| flipped(f, j).max(flipped(f, k));
+            Exchange {
                 joints: [j + 1, k + 1],
                 exchanged,
-                recorded: as_recorded,
-                ratio: exchanged / as_recorded.max(f64::MIN_POSITIVE),
+                recorded,
+                ratio: exchanged / recorded.max(f64::MIN_POSITIVE),
                 flip_fits_better: flip(j).min(flip(k)) < exchanged,
-            });
-        }
-    }
-    found
+            }
+        })
+        .collect()
 }
