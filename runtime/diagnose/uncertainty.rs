@@ -4,7 +4,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::candidate::{Candidate, Shape, columns_of};
-use super::fit::{Fit, fit};
+use super::fit::{Fit, fit, fit_near};
 use super::moments::{Moments, sse_per_joint};
 use super::solve::pseudo_solve;
 
@@ -79,7 +79,7 @@ pub(super) fn robust_quantity(
     let folds: Option<Vec<DVector<f64>>> = (groups >= 3)
         .then(|| {
             (0..groups)
-                .map(|g| fit_on(m, candidates, selected, g).map(|t| f(&t)))
+                .map(|g| fit_on(m, candidates, selected, g, &fit.theta).map(|t| f(&t)))
                 .collect()
         })
         .flatten();
@@ -95,14 +95,16 @@ pub(super) fn robust_quantity(
     (value, se)
 }
 
-/// The parameters fitted without group `g`.
+/// The parameters fitted without group `g`, bodies descending from
+/// `near` (the parameters fitted on every group).
 fn fit_on(
     m: &Moments,
     candidates: &[Candidate],
     selected: &[usize],
     g: usize,
+    near: &DVector<f64>,
 ) -> Option<DVector<f64>> {
-    fit(m, candidates, selected, |h| h != g).map(|f| f.theta)
+    fit_near(m, candidates, selected, |h| h != g, near).map(|f| f.theta)
 }
 
 /// [`fit_all`] with each standard error the larger of the least-squares and
@@ -190,7 +192,7 @@ pub(super) fn jackknife_half_widths(
         return None;
     }
     let folds = (0..groups)
-        .map(|g| fit(m, candidates, selected, |h| h != g).map(|f| f.theta))
+        .map(|g| fit_on(m, candidates, selected, g, theta))
         .collect::<Option<Vec<_>>>()?;
     let mean = folds.iter().fold(DVector::zeros(theta.len()), |a, f| a + f) / groups as f64;
     let g = groups as f64;
