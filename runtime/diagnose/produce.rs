@@ -10,6 +10,8 @@
 //! column's filter does not depend on the others, so the kept rows are the
 //! same numbers whatever the batches.
 
+use std::ops::Range;
+
 use nalgebra::DMatrix;
 
 use super::band::Band;
@@ -83,8 +85,7 @@ pub(super) fn produce(
             raw.resize_with(batch.len(), || Vec::with_capacity(len * n));
         }
         let columns = &mut raw[..batch.len()];
-        columns.iter_mut().for_each(Vec::clear);
-        build(batch, columns, inputs, derived.as_ref())?;
+        build_in_parts(batch, columns, inputs, derived.as_ref())?;
         if let Some(cutoff_hz) = keep.cutoff_hz {
             filter(batch, columns, n, cutoff_hz, keep.dt)?;
         }
@@ -161,13 +162,77 @@ fn filter(
     Ok(())
 }
 
-/// Fills each column with its signal at every raw (sample, joint) row.
-/// The regressor, a tilted base's gravity and the generic features give
-/// several columns from one evaluation: computed once per batch for all
-/// of its columns that need them.
-fn build(
+/// Whether [`build`] gives `signal` a value at every row (without the
+/// derived signals only the dry-friction ones are built; the others stay
+/// empty).
+fn is_built(signal: Signal, derived: bool) -> bool {
+    derived || matches!(signal, Signal::Qd | Signal::Own(1) | Signal::Stribeck(_))
+}
+
+/// The rows of a range of samples of every column of a batch, built on one
+/// thread.
+struct Part<'a> {
+    samples: Range<usize>,
+    /// Each column's rows of `samples` (empty for a signal not built).
+    columns: Vec<&'a mut [f64]>,
+    outcome: anyhow::Result<()>,
+}
+
+/// [`build`] on contiguous ranges of samples, one per core: every value is
+/// computed by the same expression from the same sample whichever thread
+/// computes it, so the columns are the same numbers as on one thread.
+/// Each built column is sized to every (sample, joint) row first; reused
+/// memory already of that length is not written twice.
+fn build_in_parts(
     batch: &[Signal],
     columns: &mut [Vec<f64>],
+    inputs: &Inputs,
+    derived: Option<&Derived>,
+) -> anyhow::Result<()> {
+    let (len, n) = (inputs.band.qd.nrows(), inputs.levers.len());
+    for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
+        match is_built(signal, derived.is_some()) {
+            true => {
+                column.truncate(len * n);
+                column.resize(len * n, 0.0);
+            }
+            false => column.clear(),
+        }
+    }
+    let count = crate::parallel::workers().clamp(1, len.max(1));
+    let bounds: Vec<usize> = (0..=count).map(|k| k * len / count).collect();
+    let mut parts: Vec<Part> = bounds
+        .windows(2)
+        .map(|w| Part {
+            samples: w[0]..w[1],
+            columns: Vec::with_capacity(columns.len()),
+            outcome: Ok(()),
+        })
+        .collect();
+    for column in columns.iter_mut() {
+        let mut rest = column.as_mut_slice();
+        for part in &mut parts {
+            let rows = if rest.is_empty() { 0 } else { part.samples.len() * n };
+            let (mine, others) = std::mem::take(&mut rest).split_at_mut(rows);
+            part.columns.push(mine);
+            rest = others;
+        }
+    }
+    crate::parallel::for_parts_mut(&mut parts, |parts| {
+        for part in parts {
+            part.outcome = build(batch, part, inputs, derived);
+        }
+    });
+    parts.into_iter().map(|p| p.outcome).collect()
+}
+
+/// Fills each column of `part` with its signal at the (sample, joint) rows
+/// of its samples. The regressor, a tilted base's gravity and the generic
+/// features give several columns from one evaluation: computed once per
+/// sample for all of the batch's columns that need them.
+fn build(
+    batch: &[Signal],
+    part: &mut Part,
     inputs: &Inputs,
     derived: Option<&Derived>,
 ) -> anyhow::Result<()> {
@@ -189,18 +254,20 @@ fn build(
         Signal::Generic(k) => Some(k),
         _ => None,
     });
+    let samples = part.samples.clone();
+    let columns = part.columns.as_mut_slice();
     if let Some(d) = derived {
         let model = inputs.model;
-        several(columns, &inertial, d.traj, |q, qd, qdd, _| {
+        several(columns, &inertial, (d.traj, samples.clone()), |q, qd, qdd, _| {
             Ok(model.regressor(q, qd, qdd)?)
         })?;
         if let Some(t) = inputs.tilted {
-            several(columns, &tilt, d.traj, |q, _, _, _| {
+            several(columns, &tilt, (d.traj, samples.clone()), |q, _, _, _| {
                 let along = oracle::gravity_along(&t.model, q, &t.directions);
                 Ok(DMatrix::from_fn(q.len(), 3, |i, k| along[k][i]))
             })?;
         }
-        several(columns, &generic, d.traj, |q, qd, qdd, s| {
+        several(columns, &generic, (d.traj, samples.clone()), |q, qd, qdd, s| {
             let features = (0..q.len()).map(|i| {
                 let sign = moving_sign(inputs.band.qd[(s, i)], inputs.band.rest[i]);
                 let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
@@ -211,7 +278,7 @@ fn build(
         })?;
     }
     for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
-        single(signal, column, inputs, derived)?;
+        single(signal, (column, samples.start), inputs, derived);
     }
     Ok(())
 }
@@ -220,13 +287,14 @@ fn build(
 const TILE_SAMPLES: usize = 16;
 
 /// The columns `wanted` ((column, index) pairs) of the matrix `values`
-/// gives for each sample (joint x index). Rows are built a few samples at a
-/// time in a tile that stays in the cache, then appended column by column:
+/// gives for each sample (joint x index), at the rows of `samples` (the
+/// columns hold those rows alone). Rows are built a few samples at a time
+/// in a tile that stays in the cache, then copied column by column:
 /// written sample by sample, fifty-odd long columns took most of the time.
 fn several(
-    columns: &mut [Vec<f64>],
+    columns: &mut [&mut [f64]],
     wanted: &[(usize, usize)],
-    traj: &Trajectory,
+    (traj, samples): (&Trajectory, Range<usize>),
     values: impl Fn(&[f64], &[f64], &[f64], usize) -> anyhow::Result<DMatrix<f64>>,
 ) -> anyhow::Result<()> {
     if wanted.is_empty() {
@@ -238,67 +306,76 @@ fn several(
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut tile = vec![Vec::with_capacity(TILE_SAMPLES * n); wanted.len()];
-    let flush = |tile: &mut Vec<Vec<f64>>, columns: &mut [Vec<f64>]| {
-        for (part, &(c, _)) in tile.iter_mut().zip(wanted) {
-            columns[c].extend_from_slice(part);
-            part.clear();
-        }
-    };
-    for s in 0..traj.len() {
-        if s % TILE_SAMPLES == 0 {
-            flush(&mut tile, columns);
-        }
-        for i in 0..n {
-            (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
-        }
-        let y = values(&q, &qd, &qdd, s)?;
-        for i in 0..n {
-            for (part, &(_, k)) in tile.iter_mut().zip(wanted) {
-                part.push(y[(i, k)]);
+    let first = samples.start;
+    for tile_start in samples.clone().step_by(TILE_SAMPLES) {
+        for s in tile_start..(tile_start + TILE_SAMPLES).min(samples.end) {
+            for i in 0..n {
+                (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
+            }
+            let y = values(&q, &qd, &qdd, s)?;
+            for i in 0..n {
+                for (part, &(_, k)) in tile.iter_mut().zip(wanted) {
+                    part.push(y[(i, k)]);
+                }
             }
         }
+        let at = (tile_start - first) * n;
+        for (part, &(c, _)) in tile.iter_mut().zip(wanted) {
+            columns[c][at..at + part.len()].copy_from_slice(part);
+            part.clear();
+        }
     }
-    flush(&mut tile, columns);
     Ok(())
 }
 
-/// A column that one value of one (sample, joint) row gives; columns
+/// `column`, the rows of the samples from `first` on, set to `value` of
+/// each (sample, joint).
+fn fill(column: &mut [f64], (dof, first): (usize, usize), value: impl Fn(usize, usize) -> f64) {
+    for (row, s) in column.chunks_exact_mut(dof).zip(first..) {
+        for (i, x) in row.iter_mut().enumerate() {
+            *x = value(s, i);
+        }
+    }
+}
+
+/// A column that one value of one (sample, joint) row gives, at the rows
+/// `column` holds (those of the samples from `first` on); columns
 /// [`several`] builds and those without their inputs are left as they are.
 fn single(
     signal: Signal,
-    column: &mut Vec<f64>,
+    (column, first): (&mut [f64], usize),
     inputs: &Inputs,
     derived: Option<&Derived>,
-) -> anyhow::Result<()> {
+) {
     let band = inputs.band;
-    let (len, n) = (band.qd.nrows(), inputs.levers.len());
+    let at = (inputs.levers.len(), first);
     let sign = |s: usize, i: usize| moving_sign(band.qd[(s, i)], band.rest[i]);
-    let mut fill = |value: &dyn Fn(usize, usize) -> f64| {
-        column.extend((0..len).flat_map(|s| (0..n).map(move |i| value(s, i))));
-    };
     if let Signal::Stribeck(k) = signal {
         let v = stribeck_velocities()[k];
-        fill(&|s, i| stribeck_shape(v, (sign(s, i), band.qd[(s, i)]), inputs.levers[i]));
-        return Ok(());
+        let shape = |s, i| stribeck_shape(v, (sign(s, i), band.qd[(s, i)]), inputs.levers[i]);
+        return fill(column, at, shape);
     }
     match (signal, derived) {
-        (Signal::Qd, _) => fill(&|s, i| band.qd[(s, i)]),
-        (Signal::Own(1), _) => fill(&sign),
+        (Signal::Qd, _) => fill(column, at, |s, i| band.qd[(s, i)]),
+        (Signal::Own(1), _) => fill(column, at, sign),
         (_, None) => {}
-        (Signal::Residual, Some(d)) => fill(&|s, i| d.traj.tau()[(s, i)] - d.predicted[(s, i)]),
-        (Signal::Measured, Some(d)) => fill(&|s, i| d.traj.tau()[(s, i)]),
-        (Signal::Qdd | Signal::Own(2), Some(d)) => fill(&|s, i| d.accel[(s, i)]),
-        (Signal::Gravity, Some(d)) => fill(&|s, i| d.load[(s, i)]),
-        (Signal::CoulombApplied, Some(d)) => fill(&|s, i| coulomb_sign(d.traj.qd()[(s, i)])),
-        (Signal::Own(0), Some(d)) => fill(&|s, i| d.traj.qd()[(s, i)]),
-        (Signal::Own(3), Some(_)) => fill(&|_, _| 1.0),
-        (Signal::Own(4), Some(d)) => fill(&|s, i| d.traj.q()[(s, i)]),
+        (Signal::Residual, Some(d)) => {
+            fill(column, at, |s, i| d.traj.tau()[(s, i)] - d.predicted[(s, i)])
+        }
+        (Signal::Measured, Some(d)) => fill(column, at, |s, i| d.traj.tau()[(s, i)]),
+        (Signal::Qdd | Signal::Own(2), Some(d)) => fill(column, at, |s, i| d.accel[(s, i)]),
+        (Signal::Gravity, Some(d)) => fill(column, at, |s, i| d.load[(s, i)]),
+        (Signal::CoulombApplied, Some(d)) => {
+            fill(column, at, |s, i| coulomb_sign(d.traj.qd()[(s, i)]))
+        }
+        (Signal::Own(0), Some(d)) => fill(column, at, |s, i| d.traj.qd()[(s, i)]),
+        (Signal::Own(3), Some(_)) => fill(column, at, |_, _| 1.0),
+        (Signal::Own(4), Some(d)) => fill(column, at, |s, i| d.traj.q()[(s, i)]),
         // Without a tilted model its columns are zero.
-        (Signal::Tilt(_), Some(_)) if inputs.tilted.is_none() => fill(&|_, _| 0.0),
-        (Signal::MeasuredRate, Some(d)) => fill(&|s, i| d.measured_rate[(s, i)]),
+        (Signal::Tilt(_), Some(_)) if inputs.tilted.is_none() => fill(column, at, |_, _| 0.0),
+        (Signal::MeasuredRate, Some(d)) => fill(column, at, |s, i| d.measured_rate[(s, i)]),
         _ => {}
     }
-    Ok(())
 }
 
 /// A Stribeck column's value for a joint moving with `sign` at the
