@@ -85,17 +85,17 @@ pub(super) fn produce(
             raw.resize_with(batch.len(), || Vec::with_capacity(len * n));
         }
         let columns = &mut raw[..batch.len()];
-        build_in_parts(batch, columns, inputs, derived.as_ref())?;
-        if let Some(cutoff_hz) = keep.cutoff_hz {
-            filter(batch, columns, n, cutoff_hz, keep.dt)?;
-        }
-        for (&signal, column) in batch.iter().zip(columns.iter()) {
+        let parts = crate::parallel::workers();
+        build_in_parts(batch, columns, (inputs, derived.as_ref()), parts)?;
+        let (kept, filtered) = kept_rows(batch, columns, n, keep)?;
+        let each = batch.iter().zip(columns.iter()).zip(kept).zip(filtered);
+        for (((&signal, column), kept), filtered) in each {
             if signal.checked()
-                && let Some(at) = column.iter().position(|x| !x.is_finite())
+                && let Some(at) = first_not_finite(column, (&kept, filtered), n, keep.samples)
             {
                 first_bad = Some(first_bad.map_or(at, |b| b.min(at)));
             }
-            *out.signal_mut(signal) = pick(column, n, keep.samples);
+            *out.signal_mut(signal) = kept;
         }
     }
     Ok(first_bad)
@@ -140,26 +140,91 @@ fn pick(column: &[f64], dof: usize, samples: &[usize]) -> Vec<f64> {
     kept
 }
 
-/// Every filtered signal of the batch through the torque's zero-phase
-/// filter at `cutoff_hz`, on both cores.
-fn filter(
+/// Each column's rows at the kept samples, through the torque's
+/// zero-phase filter (parallel filtering, on every core) where the signal
+/// is filtered, and whether it was. Only the kept samples of a filtered
+/// column are written out; the raw columns are left as they are.
+fn kept_rows(
     batch: &[Signal],
-    columns: &mut [Vec<f64>],
+    columns: &[Vec<f64>],
     dof: usize,
-    cutoff_hz: f64,
-    dt: f64,
-) -> anyhow::Result<()> {
+    keep: &Keep,
+) -> anyhow::Result<(Vec<Vec<f64>>, Vec<bool>)> {
     // A column of zeros (a tilt or Stribeck velocity not built at this
     // stage) stays zero through any linear filter.
-    let mut filtered: Vec<&mut [f64]> = batch
+    let filtered: Vec<bool> = batch
         .iter()
-        .zip(columns.iter_mut())
-        .filter(|(s, c)| s.filtered() && c.iter().any(|x| *x != 0.0))
-        .map(|(_, c)| c.as_mut_slice())
+        .zip(columns)
+        .map(|(s, c)| keep.cutoff_hz.is_some() && s.filtered() && c.iter().any(|x| *x != 0.0))
         .collect();
-    let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
-    crate::parallel::for_parts_mut(&mut filtered, |part| filter.apply_interleaved(part, dof));
-    Ok(())
+    let mut through = Vec::new();
+    if let Some(cutoff_hz) = keep.cutoff_hz {
+        let filter = ZeroPhaseLowPass::new(cutoff_hz, keep.dt)?;
+        let passing: Vec<&[f64]> = columns
+            .iter()
+            .zip(&filtered)
+            .filter(|(_, f)| **f)
+            .map(|(c, _)| c.as_slice())
+            .collect();
+        let workers = crate::parallel::workers();
+        let parts: Vec<&[&[f64]]> = passing
+            .chunks(passing.len().div_ceil(workers).max(1))
+            .collect();
+        let kept = |part: &&[&[f64]]| filter.apply_interleaved_at(part, dof, keep.samples);
+        through = crate::parallel::map_in_order_on(&parts, kept, workers);
+    }
+    let mut through = through.into_iter().flatten();
+    let kept = columns
+        .iter()
+        .zip(&filtered)
+        .map(|(c, &f)| match f {
+            true => through.next().unwrap_or_default(),
+            false => pick(c, dof, keep.samples),
+        })
+        .collect();
+    Ok((kept, filtered))
+}
+
+/// The first full-rate row where `column` is not finite, after the
+/// filter when it was `filtered`. A series holding a value that is not
+/// finite is not finite at any sample once filtered (the forward pass
+/// carries it to the end, the backward pass from there to the start): its
+/// first such row is the first sample's, at the lowest joint with one. A
+/// filter output overflowing from finite values is seen at the kept
+/// samples (`kept`, the column's rows there).
+fn first_not_finite(
+    column: &[f64],
+    (kept, filtered): (&[f64], bool),
+    dof: usize,
+    samples: &[usize],
+) -> Option<usize> {
+    let finite = |x: &f64| x.is_finite();
+    if all_finite(column) && kept.iter().all(finite) {
+        return None;
+    }
+    if !filtered || column.len() < 2 * dof {
+        return column.iter().position(|x| !finite(x));
+    }
+    let joint = column
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| !finite(x))
+        .map(|(r, _)| r % dof)
+        .min();
+    let overflow = kept
+        .iter()
+        .position(|x| !finite(x))
+        .map(|k| samples[k / dof] * dof + k % dof);
+    joint.or(overflow)
+}
+
+/// Whether every value of `column` is finite: its exponent bits not all
+/// set, tested on every value with no early exit (an integer OR, which the
+/// compiler turns into vector instructions).
+fn all_finite(column: &[f64]) -> bool {
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    let not_finite = |x: &f64| u64::from(x.to_bits() & EXPONENT == EXPONENT);
+    column.iter().fold(0, |any, x| any | not_finite(x)) == 0
 }
 
 /// Whether [`build`] gives `signal` a value at every row (without the
@@ -178,16 +243,17 @@ struct Part<'a> {
     outcome: anyhow::Result<()>,
 }
 
-/// [`build`] on contiguous ranges of samples, one per core: every value is
-/// computed by the same expression from the same sample whichever thread
-/// computes it, so the columns are the same numbers as on one thread.
-/// Each built column is sized to every (sample, joint) row first; reused
-/// memory already of that length is not written twice.
+/// [`build`] on `count` contiguous ranges of samples, one thread each
+/// (one per core): every value is computed by the same expression from the
+/// same sample whichever thread computes it, so the columns are the same
+/// numbers as on one thread. Each built column is sized to every (sample,
+/// joint) row first; reused memory already of that length is not written
+/// twice.
 fn build_in_parts(
     batch: &[Signal],
     columns: &mut [Vec<f64>],
-    inputs: &Inputs,
-    derived: Option<&Derived>,
+    (inputs, derived): (&Inputs, Option<&Derived>),
+    count: usize,
 ) -> anyhow::Result<()> {
     let (len, n) = (inputs.band.qd.nrows(), inputs.levers.len());
     for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
@@ -199,7 +265,7 @@ fn build_in_parts(
             false => column.clear(),
         }
     }
-    let count = crate::parallel::workers().clamp(1, len.max(1));
+    let count = count.clamp(1, len.max(1));
     let bounds: Vec<usize> = (0..=count).map(|k| k * len / count).collect();
     let mut parts: Vec<Part> = bounds
         .windows(2)
@@ -212,7 +278,11 @@ fn build_in_parts(
     for column in columns.iter_mut() {
         let mut rest = column.as_mut_slice();
         for part in &mut parts {
-            let rows = if rest.is_empty() { 0 } else { part.samples.len() * n };
+            let rows = if rest.is_empty() {
+                0
+            } else {
+                part.samples.len() * n
+            };
             let (mine, others) = std::mem::take(&mut rest).split_at_mut(rows);
             part.columns.push(mine);
             rest = others;
@@ -258,24 +328,32 @@ fn build(
     let columns = part.columns.as_mut_slice();
     if let Some(d) = derived {
         let model = inputs.model;
-        several(columns, &inertial, (d.traj, samples.clone()), |q, qd, qdd, _| {
-            Ok(model.regressor(q, qd, qdd)?)
-        })?;
+        several(
+            columns,
+            &inertial,
+            (d.traj, samples.clone()),
+            |q, qd, qdd, _| Ok(model.regressor(q, qd, qdd)?),
+        )?;
         if let Some(t) = inputs.tilted {
             several(columns, &tilt, (d.traj, samples.clone()), |q, _, _, _| {
                 let along = oracle::gravity_along(&t.model, q, &t.directions);
                 Ok(DMatrix::from_fn(q.len(), 3, |i, k| along[k][i]))
             })?;
         }
-        several(columns, &generic, (d.traj, samples.clone()), |q, qd, qdd, s| {
-            let features = (0..q.len()).map(|i| {
-                let sign = moving_sign(inputs.band.qd[(s, i)], inputs.band.rest[i]);
-                let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
-                generic_features(q[i], qd[i], sign, qdd[i], load, rate)
-            });
-            let features: Vec<[f64; 12]> = features.collect();
-            Ok(DMatrix::from_fn(q.len(), 12, |i, k| features[i][k]))
-        })?;
+        several(
+            columns,
+            &generic,
+            (d.traj, samples.clone()),
+            |q, qd, qdd, s| {
+                let features = (0..q.len()).map(|i| {
+                    let sign = moving_sign(inputs.band.qd[(s, i)], inputs.band.rest[i]);
+                    let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
+                    generic_features(q[i], qd[i], sign, qdd[i], load, rate)
+                });
+                let features: Vec<[f64; 12]> = features.collect();
+                Ok(DMatrix::from_fn(q.len(), 12, |i, k| features[i][k]))
+            },
+        )?;
     }
     for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
         single(signal, (column, samples.start), inputs, derived);
@@ -359,9 +437,9 @@ fn single(
         (Signal::Qd, _) => fill(column, at, |s, i| band.qd[(s, i)]),
         (Signal::Own(1), _) => fill(column, at, sign),
         (_, None) => {}
-        (Signal::Residual, Some(d)) => {
-            fill(column, at, |s, i| d.traj.tau()[(s, i)] - d.predicted[(s, i)])
-        }
+        (Signal::Residual, Some(d)) => fill(column, at, |s, i| {
+            d.traj.tau()[(s, i)] - d.predicted[(s, i)]
+        }),
         (Signal::Measured, Some(d)) => fill(column, at, |s, i| d.traj.tau()[(s, i)]),
         (Signal::Qdd | Signal::Own(2), Some(d)) => fill(column, at, |s, i| d.accel[(s, i)]),
         (Signal::Gravity, Some(d)) => fill(column, at, |s, i| d.load[(s, i)]),
@@ -511,6 +589,44 @@ mod tests {
                     let (a, b) = (whole.signal_mut(signal).clone(), batched.signal_mut(signal));
                     assert_eq!(a.len(), 110 * 3, "{signal:?}");
                     assert_eq!(bits(&a), bits(b), "{stage:?} {signal:?} at {budget} bytes");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn any_number_of_parts_builds_the_same_columns() {
+        let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
+        let traj = recording(model);
+        let tilted = tilted(model);
+        let band = Band {
+            qd: traj.qd().clone(),
+            rest: vec![0.05; 3],
+        };
+        let levers = [1.0; 3];
+        let inputs = Inputs {
+            model,
+            tilted: Some(&tilted),
+            traj: Some(&traj),
+            band: &band,
+            levers: &levers,
+        };
+        let derived = derived(model, &traj).unwrap();
+        for stage in [Stage::Motion, Stage::Reversals] {
+            let signals = Rows::with_columns(3, (stage, true)).signals();
+            let built = |count: usize, with: Option<&Derived>| {
+                // Memory reused from a longer build must not show through
+                // (it holds a different value for each count).
+                let stale = count as f64 + 0.5;
+                let mut columns = vec![vec![stale; 4 * SAMPLES * 3]; signals.len()];
+                build_in_parts(&signals, &mut columns, (&inputs, with), count).unwrap();
+                columns.iter().map(|c| bits(c)).collect::<Vec<_>>()
+            };
+            for with in [Some(&derived), None] {
+                let one = built(1, with);
+                assert!(one.iter().any(|c| c.len() == SAMPLES * 3));
+                for count in [2, 3, 7] {
+                    assert_eq!(one, built(count, with), "{stage:?} in {count} parts");
                 }
             }
         }
