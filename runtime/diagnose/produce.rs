@@ -321,7 +321,7 @@ fn build_in_parts(
             part.outcome = build(batch, part, inputs, derived);
         }
     });
-    parts.into_iter().map(|p| p.outcome).collect()
+    parts.into_iter().try_for_each(|p| p.outcome)
 }
 
 /// Fills each column of `part` with its signal at the (sample, joint) rows
