@@ -12,7 +12,7 @@
 
 use std::ops::Range;
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 use super::band::Band;
 use super::rows::{Rows, Signal, Tilted, moving_sign};
@@ -364,8 +364,7 @@ fn build(
         )?;
         if let Some(t) = inputs.tilted {
             several(columns, &tilt, (d.traj, samples.clone()), |q, _, _, _| {
-                let along = oracle::gravity_along(&t.model, q, &t.directions);
-                Ok(DMatrix::from_fn(q.len(), 3, |i, k| along[k][i]))
+                Ok(oracle::gravity_along(&t.model, q, &t.directions))
             })?;
         }
         several(
@@ -378,8 +377,7 @@ fn build(
                     let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
                     generic_features(q[i], qd[i], sign, qdd[i], load, rate)
                 });
-                let features: Vec<[f64; 12]> = features.collect();
-                Ok(DMatrix::from_fn(q.len(), 12, |i, k| features[i][k]))
+                Ok(features.collect::<Vec<[f64; 12]>>())
             },
         )?;
     }
@@ -387,6 +385,33 @@ fn build(
         single(signal, (column, samples.start), inputs, derived);
     }
     Ok(())
+}
+
+/// What [`several`] reads of one sample's values: by joint and index,
+/// as each evaluation gives them (no copy into a matrix per sample).
+trait Table {
+    fn at(&self, joint: usize, index: usize) -> f64;
+}
+
+/// The regressor: joints x parameters.
+impl Table for DMatrix<f64> {
+    fn at(&self, joint: usize, index: usize) -> f64 {
+        self[(joint, index)]
+    }
+}
+
+/// Gravity torques along each direction, each over the joints.
+impl<const K: usize> Table for [DVector<f64>; K] {
+    fn at(&self, joint: usize, index: usize) -> f64 {
+        self[index][joint]
+    }
+}
+
+/// Each joint's features.
+impl<const K: usize> Table for Vec<[f64; K]> {
+    fn at(&self, joint: usize, index: usize) -> f64 {
+        self[joint][index]
+    }
 }
 
 /// Samples per tile of [`several`].
@@ -397,11 +422,11 @@ const TILE_SAMPLES: usize = 16;
 /// columns hold those rows alone). Rows are built a few samples at a time
 /// in a tile that stays in the cache, then copied column by column:
 /// written sample by sample, fifty-odd long columns took most of the time.
-fn several(
+fn several<T: Table>(
     columns: &mut [&mut [f64]],
     wanted: &[(usize, usize)],
     (traj, samples): (&Trajectory, Range<usize>),
-    values: impl Fn(&[f64], &[f64], &[f64], usize) -> anyhow::Result<DMatrix<f64>>,
+    values: impl Fn(&[f64], &[f64], &[f64], usize) -> anyhow::Result<T>,
 ) -> anyhow::Result<()> {
     if wanted.is_empty() {
         return Ok(());
@@ -421,7 +446,7 @@ fn several(
             let y = values(&q, &qd, &qdd, s)?;
             for i in 0..n {
                 for (part, &(_, k)) in tile.iter_mut().zip(wanted) {
-                    part.push(y[(i, k)]);
+                    part.push(y.at(i, k));
                 }
             }
         }
