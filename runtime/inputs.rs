@@ -122,10 +122,18 @@ impl InputArgs {
     /// CSV files, or ROS 2 bags (`.mcap`) of sensor_msgs/JointState, read
     /// by the model's joint names when the bag carries them.
     /// One recording given twice is refused (see [`reject_repeated`]).
+    /// CSV files are first parsed on every core, in the files' order
+    /// (parsing says nothing on standard error); what is said about each
+    /// file, its checks and any second reading (a resampled one) follow
+    /// file by file, as on one thread.
     pub fn read_all(&self, paths: &[PathBuf], joints: Joints) -> Result<Vec<Trajectory>> {
+        let parsed = crate::parallel::map_in_order(paths, |path| {
+            is_csv_file(path).then(|| self.read_at(path, joints, self.resample))
+        });
         let recordings = paths
             .iter()
-            .map(|path| self.read(path, joints))
+            .zip(parsed)
+            .map(|(path, parsed)| self.read_parsed(path, joints, parsed))
             .collect::<Result<Vec<_>>>()?;
         reject_repeated(paths, &recordings)?;
         Ok(recordings)
@@ -134,7 +142,18 @@ impl InputArgs {
     /// One recording (see [`InputArgs::read_all`]), its values checked
     /// against [`PLAUSIBLE`].
     pub fn read(&self, path: &Path, joints: Joints) -> Result<Trajectory> {
-        let traj = self.read_unchecked(path, joints)?;
+        self.read_parsed(path, joints, None)
+    }
+
+    /// [`InputArgs::read`], given what the file's first reading at the
+    /// `--resample` rate gave, if it was read already.
+    fn read_parsed(
+        &self,
+        path: &Path,
+        joints: Joints,
+        parsed: Option<Result<Trajectory>>,
+    ) -> Result<Trajectory> {
+        let traj = self.read_unchecked(path, joints, parsed)?;
         check_plausible(path, &traj)?;
         warn_slow_sampling(path, traj.t());
         if self.torque_scales.is_empty() && self.torque_delay.is_none() {
@@ -148,8 +167,14 @@ impl InputArgs {
     /// Reads at the given `--resample` rate; without one, a jittery file
     /// is resampled at its median rate (said on standard error), since a
     /// real log's timestamps rarely tick evenly.
-    fn read_unchecked(&self, path: &Path, joints: Joints) -> Result<Trajectory> {
-        match self.read_at(path, joints, self.resample) {
+    fn read_unchecked(
+        &self,
+        path: &Path,
+        joints: Joints,
+        parsed: Option<Result<Trajectory>>,
+    ) -> Result<Trajectory> {
+        let first = parsed.unwrap_or_else(|| self.read_at(path, joints, self.resample));
+        match first {
             Err(e) if self.resample.is_none() => match e.downcast_ref::<TrajectoryError>() {
                 Some(TrajectoryError::NonUniformSampling {
                     min_step,
@@ -187,10 +212,7 @@ impl InputArgs {
             resample_hz: resample,
             ..self.options(joints.map(<[_]>::len), 2)
         };
-        if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
-        {
+        if is_bag(path) {
             let bag = BagOptions {
                 topic: self.topic.clone(),
                 joints: self.joints.clone(),
@@ -202,6 +224,19 @@ impl InputArgs {
         }
         Ok(read_csv(path, &options)?)
     }
+}
+
+/// A ROS 2 bag, read by its joint names.
+fn is_bag(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+}
+
+/// A CSV file that reading says nothing about on standard error, and that
+/// may be read beside others: not a bag, not standard input (`-`, which
+/// only one reader may take).
+fn is_csv_file(path: &Path) -> bool {
+    !is_bag(path) && path != Path::new("-")
 }
 
 /// Refuses two files that hold the same samples (one recording given

@@ -190,24 +190,26 @@ pub fn gravity(model: &Model, q: &[f64]) -> DVector<f64> {
 /// [`gravity`] of `model` with its gravity vector replaced by each of
 /// `directions` in turn (the same numbers as `gravity` of each such
 /// model, but for the sign of an exact zero), the bodies' frames computed
-/// once for all of them.
+/// once for all of them and the directions carried through one recursion
+/// side by side (each direction's operations are its own, in the same
+/// order).
 pub fn gravity_along<const K: usize>(
     model: &Model,
     q: &[f64],
     directions: &[Vector3<f64>; K],
 ) -> [DVector<f64>; K] {
-    let params: Vec<_> = model.bodies.iter().map(|b| b.parameters).collect();
     let zero = vec![0.0; model.dof()];
     let frames = frames(model, q, &zero, &zero);
-    directions.map(|direction| {
-        let mut g = torque_at_rest(model, &params, direction, &frames);
-        for body in &model.bodies {
-            let (d, m, _) = body.driver;
-            let (q, _, _) = body.state(q, &zero, &zero);
-            g[d] += m * position_torque(&body.effects, q);
+    let mut g = torques_at_rest(model, directions, &frames);
+    for body in &model.bodies {
+        let (d, m, _) = body.driver;
+        let (q, _, _) = body.state(q, &zero, &zero);
+        let position = m * position_torque(&body.effects, q);
+        for g in &mut g {
+            g[d] += position;
         }
-        g
-    })
+    }
+    g
 }
 
 /// Coriolis and centrifugal vector c(q, qd), without gravity or effects.
@@ -328,29 +330,52 @@ fn torque_in_frames(
     joint_torques(model, frames, forces, moments)
 }
 
-/// [`torque_in_frames`] at rest (zero velocities and accelerations), where
-/// every term of the bodies' rates of turn is an exact zero: without them,
-/// the same numbers but for the sign of a result that is exactly zero.
-fn torque_at_rest(
+/// [`torque_in_frames`] at rest (zero velocities and accelerations) for
+/// each of the gravity vectors `directions`, where every term of the
+/// bodies' rates of turn is an exact zero: without them, the same numbers
+/// but for the sign of a result that is exactly zero. The directions go
+/// through the recursion side by side, each with its own operations in
+/// [`joint_torques`]' order: one set of buffers for all of them.
+fn torques_at_rest<const K: usize>(
     model: &Model,
-    params: &[[f64; INERTIAL_PARAMETERS]],
-    gravity: Vector3<f64>,
+    directions: &[Vector3<f64>; K],
     frames: &[(Matrix3<f64>, Vector3<f64>)],
-) -> DVector<f64> {
+) -> [DVector<f64>; K] {
     let n = model.bodies.len();
-    let mut forces = Vec::with_capacity(n);
-    let mut moments = Vec::with_capacity(n);
+    let mut forces: Vec<[Vector3<f64>; K]> = Vec::with_capacity(n);
+    let mut moments: Vec<[Vector3<f64>; K]> = Vec::with_capacity(n);
     // Base: accelerating upwards to emulate gravity.
-    let mut accelerations: Vec<Vector3<f64>> = Vec::with_capacity(n);
+    let mut accelerations: Vec<[Vector3<f64>; K]> = Vec::with_capacity(n);
     for (i, body) in model.bodies.iter().enumerate() {
-        let vd = body.parent.map_or(-gravity, |p| accelerations[p]);
-        let vd = frames[i].0.transpose() * vd;
-        let (m, h, _) = unpack(&params[i]);
-        forces.push(m * vd);
-        moments.push(h.cross(&vd));
+        let rt = frames[i].0.transpose();
+        let vd: [Vector3<f64>; K] = std::array::from_fn(|k| {
+            rt * body.parent.map_or(-directions[k], |p| accelerations[p][k])
+        });
+        let (m, h, _) = unpack(&body.parameters);
+        forces.push(vd.map(|vd| m * vd));
+        moments.push(vd.map(|vd| h.cross(&vd)));
         accelerations.push(vd);
     }
-    joint_torques(model, frames, forces, moments)
+    let mut tau = std::array::from_fn(|_| DVector::zeros(model.dof()));
+    for i in (0..n).rev() {
+        let body = &model.bodies[i];
+        for k in 0..K {
+            if let Some(parent) = body.parent {
+                let (r, p) = frames[i];
+                let force = r * forces[i][k];
+                let moment = r * moments[i][k] + p.cross(&force);
+                forces[parent][k] += force;
+                moments[parent][k] += moment;
+            }
+            let along = match body.kind {
+                JointKind::Prismatic => forces[i][k],
+                _ => moments[i][k],
+            };
+            let (d, multiplier, _) = body.driver;
+            tau[k][d] += multiplier * body.axis.dot(&along);
+        }
+    }
+    tau
 }
 
 /// The backward pass of the RNEA: each body's force and moment about its

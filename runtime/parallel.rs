@@ -2,11 +2,15 @@
 //! each item gives does not depend on which thread ran it, so the output
 //! is identical to a one-thread run.
 
-/// `f` of every item, in order, on up to `available_parallelism` threads
+/// The machine's cores as the standard library counts them (at least 1).
+pub fn workers() -> usize {
+    std::thread::available_parallelism().map_or(1, |p| p.get())
+}
+
+/// `f` of every item, in order, on up to [`workers`] threads
 /// (contiguous chunks; one thread for fewer than two items).
 pub fn map_in_order<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    let workers = std::thread::available_parallelism().map_or(1, |p| p.get());
-    map_in_order_on(items, f, workers)
+    map_in_order_on(items, f, workers())
 }
 
 /// [`map_in_order`] on at most `workers` threads.
@@ -38,8 +42,7 @@ pub fn map_in_order_on<T: Sync, R: Send>(
 /// `available_parallelism`), for work that changes each item on its own:
 /// the result does not depend on how the items are split.
 pub fn for_parts_mut<T: Send>(items: &mut [T], f: impl Fn(&mut [T]) + Sync) {
-    let workers = std::thread::available_parallelism().map_or(1, |p| p.get());
-    let workers = workers.min(items.len());
+    let workers = workers().min(items.len());
     if workers <= 1 {
         return f(items);
     }

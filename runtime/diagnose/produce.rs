@@ -10,12 +10,14 @@
 //! column's filter does not depend on the others, so the kept rows are the
 //! same numbers whatever the batches.
 
-use nalgebra::DMatrix;
+use std::ops::Range;
+
+use nalgebra::{DMatrix, DVector};
 
 use super::band::Band;
 use super::rows::{Rows, Signal, Tilted, moving_sign};
 use super::search::{RESOLVED_REST_MULTIPLE, stribeck_velocities};
-use crate::dynamics::{Dynamics, model_torques};
+use crate::dynamics::Dynamics;
 use crate::oracle::{self, coulomb_sign};
 use crate::preprocess::{ZeroPhaseLowPass, step};
 use crate::trajectory::Trajectory;
@@ -83,39 +85,27 @@ pub(super) fn produce(
             raw.resize_with(batch.len(), || Vec::with_capacity(len * n));
         }
         let columns = &mut raw[..batch.len()];
-        columns.iter_mut().for_each(Vec::clear);
-        build(batch, columns, inputs, derived.as_ref())?;
-        if let Some(cutoff_hz) = keep.cutoff_hz {
-            filter(batch, columns, n, cutoff_hz, keep.dt)?;
-        }
-        for (&signal, column) in batch.iter().zip(columns.iter()) {
+        let parts = crate::parallel::workers();
+        build_in_parts(batch, columns, (inputs, derived.as_ref()), parts)?;
+        let (kept, filtered) = kept_rows(batch, columns, n, keep)?;
+        let each = batch.iter().zip(columns.iter()).zip(kept).zip(filtered);
+        for (((&signal, column), kept), filtered) in each {
             if signal.checked()
-                && let Some(at) = column.iter().position(|x| !x.is_finite())
+                && let Some(at) = first_not_finite(column, (&kept, filtered), n, keep.samples)
             {
                 first_bad = Some(first_bad.map_or(at, |b| b.min(at)));
             }
-            *out.signal_mut(signal) = pick(column, n, keep.samples);
+            *out.signal_mut(signal) = kept;
         }
     }
     Ok(first_bad)
 }
 
 fn derived<'a>(model: &dyn Dynamics, traj: &'a Trajectory) -> anyhow::Result<Derived<'a>> {
-    let predicted = model_torques(model, traj)?;
+    let (predicted, load) = torques(model, traj, crate::parallel::workers())?;
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
-    let (len, n) = (traj.len(), model.dof());
-    let mut load = DMatrix::zeros(len, n);
-    let mut q = vec![0.0; n];
-    for s in 0..len {
-        for (i, q) in q.iter_mut().enumerate() {
-            *q = traj.q()[(s, i)];
-        }
-        for (i, g) in model.gravity(&q)?.iter().enumerate() {
-            load[(s, i)] = *g;
-        }
-    }
     Ok(Derived {
         rate: torque_rate(&predicted, step(traj)),
         measured_rate: torque_rate(traj.tau(), step(traj)),
@@ -124,6 +114,45 @@ fn derived<'a>(model: &dyn Dynamics, traj: &'a Trajectory) -> anyhow::Result<Der
         accel,
         traj,
     })
+}
+
+/// The model's torque (`dynamics::model_torques`) and gravity torque at
+/// every sample (samples x joints), on `count` contiguous ranges of
+/// samples, one thread each: a sample's values are its own, the same
+/// numbers as on one thread.
+fn torques(
+    model: &dyn Dynamics,
+    traj: &Trajectory,
+    count: usize,
+) -> anyhow::Result<(DMatrix<f64>, DMatrix<f64>)> {
+    let qdd = traj.qdd().ok_or_else(|| {
+        anyhow::anyhow!("the trajectory has no accelerations; preprocess it first")
+    })?;
+    let (len, n) = (traj.len(), model.dof());
+    let count = count.clamp(1, len.max(1));
+    let ranges: Vec<Range<usize>> = (0..count)
+        .map(|k| k * len / count..(k + 1) * len / count)
+        .collect();
+    let row = |m: &DMatrix<f64>, s: usize| -> Vec<f64> { m.row(s).iter().copied().collect() };
+    let part = |samples: &Range<usize>| -> anyhow::Result<Vec<_>> {
+        let at = |s: usize| -> anyhow::Result<_> {
+            let q = row(traj.q(), s);
+            let tau = model.tau(&q, &row(traj.qd(), s), &row(qdd, s))?;
+            Ok((tau, model.gravity(&q)?))
+        };
+        samples.clone().map(at).collect()
+    };
+    let parts = crate::parallel::map_in_order_on(&ranges, part, count);
+    let (mut predicted, mut load) = (DMatrix::zeros(len, n), DMatrix::zeros(len, n));
+    let mut s = 0;
+    for part in parts {
+        for (tau, gravity) in part? {
+            predicted.set_row(s, &tau.transpose());
+            load.set_row(s, &gravity.transpose());
+            s += 1;
+        }
+    }
+    Ok((predicted, load))
 }
 
 /// The rows of `column` at `samples` (rows are (sample, joint) pairs).
@@ -139,35 +168,169 @@ fn pick(column: &[f64], dof: usize, samples: &[usize]) -> Vec<f64> {
     kept
 }
 
-/// Every filtered signal of the batch through the torque's zero-phase
-/// filter at `cutoff_hz`, on both cores.
-fn filter(
+/// Each column's rows at the kept samples, through the torque's
+/// zero-phase filter (parallel filtering, on every core) where the signal
+/// is filtered, and whether it was. Only the kept samples of a filtered
+/// column are written out; the raw columns are left as they are.
+fn kept_rows(
     batch: &[Signal],
-    columns: &mut [Vec<f64>],
+    columns: &[Vec<f64>],
     dof: usize,
-    cutoff_hz: f64,
-    dt: f64,
-) -> anyhow::Result<()> {
+    keep: &Keep,
+) -> anyhow::Result<(Vec<Vec<f64>>, Vec<bool>)> {
     // A column of zeros (a tilt or Stribeck velocity not built at this
     // stage) stays zero through any linear filter.
-    let mut filtered: Vec<&mut [f64]> = batch
+    let filtered: Vec<bool> = batch
         .iter()
-        .zip(columns.iter_mut())
-        .filter(|(s, c)| s.filtered() && c.iter().any(|x| *x != 0.0))
-        .map(|(_, c)| c.as_mut_slice())
+        .zip(columns)
+        .map(|(s, c)| keep.cutoff_hz.is_some() && s.filtered() && c.iter().any(|x| *x != 0.0))
         .collect();
-    let filter = ZeroPhaseLowPass::new(cutoff_hz, dt)?;
-    crate::parallel::for_parts_mut(&mut filtered, |part| filter.apply_interleaved(part, dof));
-    Ok(())
+    let mut through = Vec::new();
+    if let Some(cutoff_hz) = keep.cutoff_hz {
+        let filter = ZeroPhaseLowPass::new(cutoff_hz, keep.dt)?;
+        let passing: Vec<&[f64]> = columns
+            .iter()
+            .zip(&filtered)
+            .filter(|(_, f)| **f)
+            .map(|(c, _)| c.as_slice())
+            .collect();
+        let workers = crate::parallel::workers();
+        let parts: Vec<&[&[f64]]> = passing
+            .chunks(passing.len().div_ceil(workers).max(1))
+            .collect();
+        let kept = |part: &&[&[f64]]| filter.apply_interleaved_at(part, dof, keep.samples);
+        through = crate::parallel::map_in_order_on(&parts, kept, workers);
+    }
+    let mut through = through.into_iter().flatten();
+    let kept = columns
+        .iter()
+        .zip(&filtered)
+        .map(|(c, &f)| match f {
+            true => through.next().unwrap_or_default(),
+            false => pick(c, dof, keep.samples),
+        })
+        .collect();
+    Ok((kept, filtered))
 }
 
-/// Fills each column with its signal at every raw (sample, joint) row.
-/// The regressor, a tilted base's gravity and the generic features give
-/// several columns from one evaluation: computed once per batch for all
-/// of its columns that need them.
-fn build(
+/// The first full-rate row where `column` is not finite, after the
+/// filter when it was `filtered`. A series holding a value that is not
+/// finite is not finite at any sample once filtered (the forward pass
+/// carries it to the end, the backward pass from there to the start): its
+/// first such row is the first sample's, at the lowest joint with one. A
+/// filter output overflowing from finite values is seen at the kept
+/// samples (`kept`, the column's rows there).
+fn first_not_finite(
+    column: &[f64],
+    (kept, filtered): (&[f64], bool),
+    dof: usize,
+    samples: &[usize],
+) -> Option<usize> {
+    let finite = |x: &f64| x.is_finite();
+    if all_finite(column) && kept.iter().all(finite) {
+        return None;
+    }
+    if !filtered || column.len() < 2 * dof {
+        return column.iter().position(|x| !finite(x));
+    }
+    let joint = column
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| !finite(x))
+        .map(|(r, _)| r % dof)
+        .min();
+    let overflow = kept
+        .iter()
+        .position(|x| !finite(x))
+        .map(|k| samples[k / dof] * dof + k % dof);
+    joint.or(overflow)
+}
+
+/// Whether every value of `column` is finite: its exponent bits not all
+/// set, tested on every value with no early exit (an integer OR, which the
+/// compiler turns into vector instructions).
+fn all_finite(column: &[f64]) -> bool {
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    let not_finite = |x: &f64| u64::from(x.to_bits() & EXPONENT == EXPONENT);
+    column.iter().fold(0, |any, x| any | not_finite(x)) == 0
+}
+
+/// Whether [`build`] gives `signal` a value at every row (without the
+/// derived signals only the dry-friction ones are built; the others stay
+/// empty).
+fn is_built(signal: Signal, derived: bool) -> bool {
+    derived || matches!(signal, Signal::Qd | Signal::Own(1) | Signal::Stribeck(_))
+}
+
+/// The rows of a range of samples of every column of a batch, built on one
+/// thread.
+struct Part<'a> {
+    samples: Range<usize>,
+    /// Each column's rows of `samples` (empty for a signal not built).
+    columns: Vec<&'a mut [f64]>,
+    outcome: anyhow::Result<()>,
+}
+
+/// [`build`] on `count` contiguous ranges of samples, one thread each
+/// (one per core): every value is computed by the same expression from the
+/// same sample whichever thread computes it, so the columns are the same
+/// numbers as on one thread. Each built column is sized to every (sample,
+/// joint) row first; reused memory already of that length is not written
+/// twice.
+fn build_in_parts(
     batch: &[Signal],
     columns: &mut [Vec<f64>],
+    (inputs, derived): (&Inputs, Option<&Derived>),
+    count: usize,
+) -> anyhow::Result<()> {
+    let (len, n) = (inputs.band.qd.nrows(), inputs.levers.len());
+    for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
+        match is_built(signal, derived.is_some()) {
+            true => {
+                column.truncate(len * n);
+                column.resize(len * n, 0.0);
+            }
+            false => column.clear(),
+        }
+    }
+    let count = count.clamp(1, len.max(1));
+    let bounds: Vec<usize> = (0..=count).map(|k| k * len / count).collect();
+    let mut parts: Vec<Part> = bounds
+        .windows(2)
+        .map(|w| Part {
+            samples: w[0]..w[1],
+            columns: Vec::with_capacity(columns.len()),
+            outcome: Ok(()),
+        })
+        .collect();
+    for column in columns.iter_mut() {
+        let mut rest = column.as_mut_slice();
+        for part in &mut parts {
+            let rows = if rest.is_empty() {
+                0
+            } else {
+                part.samples.len() * n
+            };
+            let (mine, others) = std::mem::take(&mut rest).split_at_mut(rows);
+            part.columns.push(mine);
+            rest = others;
+        }
+    }
+    crate::parallel::for_parts_mut(&mut parts, |parts| {
+        for part in parts {
+            part.outcome = build(batch, part, inputs, derived);
+        }
+    });
+    parts.into_iter().try_for_each(|p| p.outcome)
+}
+
+/// Fills each column of `part` with its signal at the (sample, joint) rows
+/// of its samples. The regressor, a tilted base's gravity and the generic
+/// features give several columns from one evaluation: computed once per
+/// sample for all of the batch's columns that need them.
+fn build(
+    batch: &[Signal],
+    part: &mut Part,
     inputs: &Inputs,
     derived: Option<&Derived>,
 ) -> anyhow::Result<()> {
@@ -189,45 +352,81 @@ fn build(
         Signal::Generic(k) => Some(k),
         _ => None,
     });
+    let samples = part.samples.clone();
+    let columns = part.columns.as_mut_slice();
     if let Some(d) = derived {
         let model = inputs.model;
-        several(columns, &inertial, d.traj, |q, qd, qdd, _| {
-            Ok(model.regressor(q, qd, qdd)?)
-        })?;
+        several(
+            columns,
+            &inertial,
+            (d.traj, samples.clone()),
+            |q, qd, qdd, _| Ok(model.regressor(q, qd, qdd)?),
+        )?;
         if let Some(t) = inputs.tilted {
-            several(columns, &tilt, d.traj, |q, _, _, _| {
-                let along = oracle::gravity_along(&t.model, q, &t.directions);
-                Ok(DMatrix::from_fn(q.len(), 3, |i, k| along[k][i]))
+            several(columns, &tilt, (d.traj, samples.clone()), |q, _, _, _| {
+                Ok(oracle::gravity_along(&t.model, q, &t.directions))
             })?;
         }
-        several(columns, &generic, d.traj, |q, qd, qdd, s| {
-            let features = (0..q.len()).map(|i| {
-                let sign = moving_sign(inputs.band.qd[(s, i)], inputs.band.rest[i]);
-                let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
-                generic_features(q[i], qd[i], sign, qdd[i], load, rate)
-            });
-            let features: Vec<[f64; 12]> = features.collect();
-            Ok(DMatrix::from_fn(q.len(), 12, |i, k| features[i][k]))
-        })?;
+        several(
+            columns,
+            &generic,
+            (d.traj, samples.clone()),
+            |q, qd, qdd, s| {
+                let features = (0..q.len()).map(|i| {
+                    let sign = moving_sign(inputs.band.qd[(s, i)], inputs.band.rest[i]);
+                    let (load, rate) = (d.load[(s, i)], d.rate[(s, i)]);
+                    generic_features(q[i], qd[i], sign, qdd[i], load, rate)
+                });
+                Ok(features.collect::<Vec<[f64; 12]>>())
+            },
+        )?;
     }
     for (&signal, column) in batch.iter().zip(columns.iter_mut()) {
-        single(signal, column, inputs, derived)?;
+        single(signal, (column, samples.start), inputs, derived);
     }
     Ok(())
+}
+
+/// What [`several`] reads of one sample's values: by joint and index,
+/// as each evaluation gives them (no copy into a matrix per sample).
+trait Table {
+    fn at(&self, joint: usize, index: usize) -> f64;
+}
+
+/// The regressor: joints x parameters.
+impl Table for DMatrix<f64> {
+    fn at(&self, joint: usize, index: usize) -> f64 {
+        self[(joint, index)]
+    }
+}
+
+/// Gravity torques along each direction, each over the joints.
+impl<const K: usize> Table for [DVector<f64>; K] {
+    fn at(&self, joint: usize, index: usize) -> f64 {
+        self[index][joint]
+    }
+}
+
+/// Each joint's features.
+impl<const K: usize> Table for Vec<[f64; K]> {
+    fn at(&self, joint: usize, index: usize) -> f64 {
+        self[joint][index]
+    }
 }
 
 /// Samples per tile of [`several`].
 const TILE_SAMPLES: usize = 16;
 
 /// The columns `wanted` ((column, index) pairs) of the matrix `values`
-/// gives for each sample (joint x index). Rows are built a few samples at a
-/// time in a tile that stays in the cache, then appended column by column:
+/// gives for each sample (joint x index), at the rows of `samples` (the
+/// columns hold those rows alone). Rows are built a few samples at a time
+/// in a tile that stays in the cache, then copied column by column:
 /// written sample by sample, fifty-odd long columns took most of the time.
-fn several(
-    columns: &mut [Vec<f64>],
+fn several<T: Table>(
+    columns: &mut [&mut [f64]],
     wanted: &[(usize, usize)],
-    traj: &Trajectory,
-    values: impl Fn(&[f64], &[f64], &[f64], usize) -> anyhow::Result<DMatrix<f64>>,
+    (traj, samples): (&Trajectory, Range<usize>),
+    values: impl Fn(&[f64], &[f64], &[f64], usize) -> anyhow::Result<T>,
 ) -> anyhow::Result<()> {
     if wanted.is_empty() {
         return Ok(());
@@ -238,67 +437,76 @@ fn several(
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut tile = vec![Vec::with_capacity(TILE_SAMPLES * n); wanted.len()];
-    let flush = |tile: &mut Vec<Vec<f64>>, columns: &mut [Vec<f64>]| {
-        for (part, &(c, _)) in tile.iter_mut().zip(wanted) {
-            columns[c].extend_from_slice(part);
-            part.clear();
-        }
-    };
-    for s in 0..traj.len() {
-        if s % TILE_SAMPLES == 0 {
-            flush(&mut tile, columns);
-        }
-        for i in 0..n {
-            (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
-        }
-        let y = values(&q, &qd, &qdd, s)?;
-        for i in 0..n {
-            for (part, &(_, k)) in tile.iter_mut().zip(wanted) {
-                part.push(y[(i, k)]);
+    let first = samples.start;
+    for tile_start in samples.clone().step_by(TILE_SAMPLES) {
+        for s in tile_start..(tile_start + TILE_SAMPLES).min(samples.end) {
+            for i in 0..n {
+                (q[i], qd[i], qdd[i]) = (traj.q()[(s, i)], traj.qd()[(s, i)], accel[(s, i)]);
+            }
+            let y = values(&q, &qd, &qdd, s)?;
+            for i in 0..n {
+                for (part, &(_, k)) in tile.iter_mut().zip(wanted) {
+                    part.push(y.at(i, k));
+                }
             }
         }
+        let at = (tile_start - first) * n;
+        for (part, &(c, _)) in tile.iter_mut().zip(wanted) {
+            columns[c][at..at + part.len()].copy_from_slice(part);
+            part.clear();
+        }
     }
-    flush(&mut tile, columns);
     Ok(())
 }
 
-/// A column that one value of one (sample, joint) row gives; columns
+/// `column`, the rows of the samples from `first` on, set to `value` of
+/// each (sample, joint).
+fn fill(column: &mut [f64], (dof, first): (usize, usize), value: impl Fn(usize, usize) -> f64) {
+    for (row, s) in column.chunks_exact_mut(dof).zip(first..) {
+        for (i, x) in row.iter_mut().enumerate() {
+            *x = value(s, i);
+        }
+    }
+}
+
+/// A column that one value of one (sample, joint) row gives, at the rows
+/// `column` holds (those of the samples from `first` on); columns
 /// [`several`] builds and those without their inputs are left as they are.
 fn single(
     signal: Signal,
-    column: &mut Vec<f64>,
+    (column, first): (&mut [f64], usize),
     inputs: &Inputs,
     derived: Option<&Derived>,
-) -> anyhow::Result<()> {
+) {
     let band = inputs.band;
-    let (len, n) = (band.qd.nrows(), inputs.levers.len());
+    let at = (inputs.levers.len(), first);
     let sign = |s: usize, i: usize| moving_sign(band.qd[(s, i)], band.rest[i]);
-    let mut fill = |value: &dyn Fn(usize, usize) -> f64| {
-        column.extend((0..len).flat_map(|s| (0..n).map(move |i| value(s, i))));
-    };
     if let Signal::Stribeck(k) = signal {
         let v = stribeck_velocities()[k];
-        fill(&|s, i| stribeck_shape(v, (sign(s, i), band.qd[(s, i)]), inputs.levers[i]));
-        return Ok(());
+        let shape = |s, i| stribeck_shape(v, (sign(s, i), band.qd[(s, i)]), inputs.levers[i]);
+        return fill(column, at, shape);
     }
     match (signal, derived) {
-        (Signal::Qd, _) => fill(&|s, i| band.qd[(s, i)]),
-        (Signal::Own(1), _) => fill(&sign),
+        (Signal::Qd, _) => fill(column, at, |s, i| band.qd[(s, i)]),
+        (Signal::Own(1), _) => fill(column, at, sign),
         (_, None) => {}
-        (Signal::Residual, Some(d)) => fill(&|s, i| d.traj.tau()[(s, i)] - d.predicted[(s, i)]),
-        (Signal::Measured, Some(d)) => fill(&|s, i| d.traj.tau()[(s, i)]),
-        (Signal::Qdd | Signal::Own(2), Some(d)) => fill(&|s, i| d.accel[(s, i)]),
-        (Signal::Gravity, Some(d)) => fill(&|s, i| d.load[(s, i)]),
-        (Signal::CoulombApplied, Some(d)) => fill(&|s, i| coulomb_sign(d.traj.qd()[(s, i)])),
-        (Signal::Own(0), Some(d)) => fill(&|s, i| d.traj.qd()[(s, i)]),
-        (Signal::Own(3), Some(_)) => fill(&|_, _| 1.0),
-        (Signal::Own(4), Some(d)) => fill(&|s, i| d.traj.q()[(s, i)]),
+        (Signal::Residual, Some(d)) => fill(column, at, |s, i| {
+            d.traj.tau()[(s, i)] - d.predicted[(s, i)]
+        }),
+        (Signal::Measured, Some(d)) => fill(column, at, |s, i| d.traj.tau()[(s, i)]),
+        (Signal::Qdd | Signal::Own(2), Some(d)) => fill(column, at, |s, i| d.accel[(s, i)]),
+        (Signal::Gravity, Some(d)) => fill(column, at, |s, i| d.load[(s, i)]),
+        (Signal::CoulombApplied, Some(d)) => {
+            fill(column, at, |s, i| coulomb_sign(d.traj.qd()[(s, i)]))
+        }
+        (Signal::Own(0), Some(d)) => fill(column, at, |s, i| d.traj.qd()[(s, i)]),
+        (Signal::Own(3), Some(_)) => fill(column, at, |_, _| 1.0),
+        (Signal::Own(4), Some(d)) => fill(column, at, |s, i| d.traj.q()[(s, i)]),
         // Without a tilted model its columns are zero.
-        (Signal::Tilt(_), Some(_)) if inputs.tilted.is_none() => fill(&|_, _| 0.0),
-        (Signal::MeasuredRate, Some(d)) => fill(&|s, i| d.measured_rate[(s, i)]),
+        (Signal::Tilt(_), Some(_)) if inputs.tilted.is_none() => fill(column, at, |_, _| 0.0),
+        (Signal::MeasuredRate, Some(d)) => fill(column, at, |s, i| d.measured_rate[(s, i)]),
         _ => {}
     }
-    Ok(())
 }
 
 /// A Stribeck column's value for a joint moving with `sign` at the
@@ -343,160 +551,4 @@ fn torque_rate(tau: &DMatrix<f64>, dt: f64) -> DMatrix<f64> {
 }
 
 #[cfg(test)]
-mod tests {
-    use nalgebra::Vector3;
-
-    use super::*;
-    use crate::diagnose::band::Stage;
-    use crate::oracle::Model;
-
-    const SAMPLES: usize = 1200;
-    const DT: f64 = 1e-3;
-
-    /// The 3-DOF arm moving smoothly for 1.2 s at 1 kHz, its torque the
-    /// model's plus friction and a ripple the model lacks.
-    fn recording(model: &dyn Dynamics) -> Trajectory {
-        let n = model.dof();
-        let t: Vec<f64> = (0..SAMPLES).map(|s| s as f64 * DT).collect();
-        let w = |j: usize| 2.0 + j as f64;
-        let q = DMatrix::from_fn(SAMPLES, n, |s, j| 0.2 + 0.6 * (w(j) * t[s]).sin());
-        let qd = DMatrix::from_fn(SAMPLES, n, |s, j| 0.6 * w(j) * (w(j) * t[s]).cos());
-        let qdd = DMatrix::from_fn(SAMPLES, n, |s, j| -0.6 * w(j) * w(j) * (w(j) * t[s]).sin());
-        let mut tau = DMatrix::zeros(SAMPLES, n);
-        for s in 0..SAMPLES {
-            let row = |m: &DMatrix<f64>| -> Vec<f64> { m.row(s).iter().copied().collect() };
-            let rigid = model.tau(&row(&q), &row(&qd), &row(&qdd)).unwrap();
-            for j in 0..n {
-                let friction = 0.3 * qd[(s, j)] + 0.2 * qd[(s, j)].signum();
-                tau[(s, j)] = rigid[j] + friction + 0.05 * (40.0 * t[s]).sin();
-            }
-        }
-        Trajectory::new(t, q, qd, Some(qdd), tau).unwrap()
-    }
-
-    fn tilted(model: &dyn Dynamics) -> Tilted {
-        let description = crate::dynamics::parsed_description(model).unwrap();
-        Tilted {
-            model: Model::from_description(&description),
-            directions: [Vector3::x(), Vector3::y(), -Vector3::z()],
-        }
-    }
-
-    /// Every signal of `stage`, produced with at most `budget` bytes of raw
-    /// columns at once.
-    fn produced(stage: Stage, budget: usize) -> Rows {
-        let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
-        let traj = recording(model);
-        let tilted = tilted(model);
-        let band = Band {
-            qd: traj.qd().clone(),
-            rest: vec![0.05; 3],
-        };
-        let levers = [1.0; 3];
-        let inputs = Inputs {
-            model,
-            tilted: Some(&tilted),
-            traj: Some(&traj),
-            band: &band,
-            levers: &levers,
-        };
-        let samples: Vec<usize> = (50..SAMPLES - 50).step_by(10).collect();
-        let keep = Keep {
-            cutoff_hz: Some(15.0),
-            dt: DT,
-            samples: &samples,
-        };
-        let mut rows = Rows::with_columns(3, (stage, true));
-        let signals = rows.signals();
-        let bad = produce(
-            &mut rows,
-            &signals,
-            &inputs,
-            &keep,
-            (&mut Vec::new(), budget),
-        );
-        assert_eq!(bad.unwrap(), None);
-        rows
-    }
-
-    fn bits(v: &[f64]) -> Vec<u64> {
-        v.iter().map(|x| x.to_bits()).collect()
-    }
-
-    #[test]
-    fn batches_of_any_size_give_the_same_rows() {
-        let column = SAMPLES * 3 * 8;
-        for stage in [Stage::Motion, Stage::Reversals] {
-            let mut whole = produced(stage, usize::MAX);
-            for budget in [1, 7 * column] {
-                let mut batched = produced(stage, budget);
-                for signal in whole.signals() {
-                    let (a, b) = (whole.signal_mut(signal).clone(), batched.signal_mut(signal));
-                    assert_eq!(a.len(), 110 * 3, "{signal:?}");
-                    assert_eq!(bits(&a), bits(b), "{stage:?} {signal:?} at {budget} bytes");
-                }
-            }
-        }
-    }
-
-    /// A signal's raw value at a (sample, joint).
-    type Value<'a> = Box<dyn Fn(usize, usize) -> f64 + 'a>;
-
-    /// Joint `j`'s series of `value` (sample, joint), filtered alone by the
-    /// torque filter, at the kept samples; and those of `rows`' signal.
-    fn alone_and_kept(
-        rows: &mut Rows,
-        signal: Signal,
-        j: usize,
-        value: impl Fn(usize, usize) -> f64,
-    ) -> (Vec<u64>, Vec<u64>) {
-        let series: Vec<f64> = (0..SAMPLES).map(|s| value(s, j)).collect();
-        let filtered = match signal.filtered() {
-            true => ZeroPhaseLowPass::new(15.0, DT).unwrap().apply(&series),
-            false => series,
-        };
-        let expected = (50..SAMPLES - 50).step_by(10).map(|s| filtered[s]);
-        let kept = rows.signal_mut(signal).iter().skip(j).step_by(3).copied();
-        (
-            bits(&expected.collect::<Vec<_>>()),
-            bits(&kept.collect::<Vec<_>>()),
-        )
-    }
-
-    #[test]
-    fn kept_rows_are_each_signal_filtered_alone_then_decimated() {
-        let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
-        let traj = recording(model);
-        let predicted = model_torques(model, &traj).unwrap();
-        let mut rows = produced(Stage::Reversals, 5 * SAMPLES * 3 * 8);
-        let state = |s: usize, m: &DMatrix<f64>| -> Vec<f64> { m.row(s).iter().copied().collect() };
-        let regressor = |s: usize, i: usize, k: usize| {
-            let qdd = traj.qdd().unwrap();
-            let y = model.regressor(&state(s, traj.q()), &state(s, traj.qd()), &state(s, qdd));
-            y.unwrap()[(i, k)]
-        };
-        let v = stribeck_velocities()[9];
-        for j in 0..3 {
-            let checks: [(Signal, Value); 5] = [
-                (
-                    Signal::Residual,
-                    Box::new(|s, i| traj.tau()[(s, i)] - predicted[(s, i)]),
-                ),
-                (Signal::Own(3), Box::new(|_, _| 1.0)),
-                (Signal::Inertial(17), Box::new(|s, i| regressor(s, i, 17))),
-                (Signal::Qd, Box::new(|s, i| traj.qd()[(s, i)])),
-                (
-                    Signal::Stribeck(9),
-                    Box::new(|s, i| {
-                        let qd = traj.qd()[(s, i)];
-                        stribeck_shape(v, (moving_sign(qd, 0.05), qd), 1.0)
-                    }),
-                ),
-            ];
-            for (signal, value) in checks {
-                let (alone, kept) = alone_and_kept(&mut rows, signal, j, value);
-                assert_eq!(alone, kept, "{signal:?} joint {}", j + 1);
-            }
-        }
-    }
-}
+mod tests;

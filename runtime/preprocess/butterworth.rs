@@ -9,6 +9,9 @@ use super::filters::{PreprocessError, check_dt};
 /// Order of each pass (two second-order sections).
 pub const ORDER: usize = 4;
 
+/// Second-order sections per pass.
+const SECTIONS: usize = ORDER / 2;
+
 /// One second-order section, normalized so that a0 = 1.
 #[derive(Debug, Clone, Copy)]
 struct Biquad {
@@ -58,22 +61,49 @@ const LANES: usize = 16;
 type Lanes = [f64; LANES];
 
 impl Biquad {
-    /// [`Biquad::run`] on every lane of `x`, visited in the iterator's
-    /// order (backwards for the second pass).
+    /// One sample of [`Biquad::run`] on every lane of `v`, with the
+    /// section's state `z` of each lane.
     #[inline(always)]
-    fn run_lanes<'a>(&self, mut x: impl Iterator<Item = &'a mut Lanes>) {
-        let Some(head) = x.next() else { return };
+    fn step_lanes(&self, v: &mut Lanes, [z1, z2]: &mut [Lanes; 2]) {
         let [b0, b1, b2] = self.b;
         let [a1, a2] = self.a;
-        let mut z1 = head.map(|first| (1.0 - b0) * first);
-        let mut z2 = head.map(|first| (b2 - a2) * first);
-        for v in std::iter::once(head).chain(x) {
-            for l in 0..LANES {
-                let y = b0 * v[l] + z1[l];
-                z1[l] = b1 * v[l] - a1 * y + z2[l];
-                z2[l] = b2 * v[l] - a2 * y;
-                v[l] = y;
-            }
+        for l in 0..LANES {
+            let y = b0 * v[l] + z1[l];
+            z1[l] = b1 * v[l] - a1 * y + z2[l];
+            z2[l] = b2 * v[l] - a2 * y;
+            v[l] = y;
+        }
+    }
+
+    /// The state [`Biquad::run`] starts from, for each lane's first input.
+    #[inline(always)]
+    fn start_lanes(&self, first: &Lanes) -> [Lanes; 2] {
+        let [b0, _, b2] = self.b;
+        let [_, a2] = self.a;
+        [first.map(|x| (1.0 - b0) * x), first.map(|x| (b2 - a2) * x)]
+    }
+}
+
+/// [`Biquad::run`] of each of `sections` in turn on every lane of `x`,
+/// visited in the iterator's order (backwards for the second pass), in
+/// one sweep: each sample passes every section before the next sample. A
+/// section's output at a sample depends on its input up to that sample
+/// only, so these are the operations of running the sections one after
+/// the other over the whole series, in the same order per value (the
+/// same bits), with the buffer read once, not once per section.
+#[inline(always)]
+fn run_cascade<'a>(sections: &[Biquad; SECTIONS], mut x: impl Iterator<Item = &'a mut Lanes>) {
+    let Some(head) = x.next() else { return };
+    // Each section starts in the steady state of its own first input: the
+    // previous section's first output.
+    let mut states = [[[0.0; LANES]; 2]; SECTIONS];
+    for (section, state) in sections.iter().zip(&mut states) {
+        *state = section.start_lanes(head);
+        section.step_lanes(head, state);
+    }
+    for v in x {
+        for (section, state) in sections.iter().zip(&mut states) {
+            section.step_lanes(v, state);
         }
     }
 }
@@ -81,7 +111,7 @@ impl Biquad {
 /// A zero-phase Butterworth low-pass of order [`ORDER`] per pass.
 #[derive(Debug, Clone)]
 pub struct ZeroPhaseLowPass {
-    sections: Vec<Biquad>,
+    sections: [Biquad; SECTIONS],
     /// Samples of odd reflection added at each end against start-up
     /// transients (about three periods of the cut-off).
     pad: usize,
@@ -100,12 +130,10 @@ impl ZeroPhaseLowPass {
             });
         }
         let w0 = 2.0 * std::f64::consts::PI * cutoff_hz * dt;
-        let sections = (0..ORDER / 2)
-            .map(|k| {
-                let angle = (2 * k + 1) as f64 * std::f64::consts::PI / (2 * ORDER) as f64;
-                Biquad::low_pass(w0, 1.0 / (2.0 * angle.sin()))
-            })
-            .collect();
+        let sections = std::array::from_fn(|k| {
+            let angle = (2 * k + 1) as f64 * std::f64::consts::PI / (2 * ORDER) as f64;
+            Biquad::low_pass(w0, 1.0 / (2.0 * angle.sin()))
+        });
         let pad = (3.0 / (cutoff_hz * dt)).ceil() as usize;
         Ok(Self { sections, pad })
     }
@@ -139,12 +167,41 @@ impl ZeroPhaseLowPass {
     /// j + width, ...; all columns as long), each exactly as
     /// [`ZeroPhaseLowPass::apply`] filters it, [`LANES`] series at a time.
     pub fn apply_interleaved(&self, columns: &mut [&mut [f64]], width: usize) {
+        let n = columns.first().map_or(0, |c| c.len() / width.max(1));
+        let every: Vec<usize> = (0..n).collect();
+        let shared: Vec<&[f64]> = columns.iter().map(|c| &c[..]).collect();
+        let filtered = self.apply_interleaved_at(&shared, width, &every);
+        for (column, filtered) in columns.iter_mut().zip(filtered) {
+            column[..filtered.len()].copy_from_slice(&filtered);
+        }
+    }
+
+    /// [`ZeroPhaseLowPass::apply_interleaved`] kept at the samples
+    /// `samples` alone: per column, its rows there (`width` values per
+    /// sample). Every sample passes the filter; only the kept ones are
+    /// written out (a diagnosis keeps one sample in tens).
+    pub fn apply_interleaved_at(
+        &self,
+        columns: &[&[f64]],
+        width: usize,
+        samples: &[usize],
+    ) -> Vec<Vec<f64>> {
         let width = width.max(1);
-        let Some(n) = columns.first().map(|c| c.len() / width) else {
-            return;
-        };
+        let n = columns.first().map_or(0, |c| c.len() / width);
+        let mut kept: Vec<Vec<f64>> = columns
+            .iter()
+            .map(|c| match n < 2 {
+                // Nothing to filter: the series as they are.
+                true => samples
+                    .iter()
+                    .flat_map(|&s| &c[s * width..(s + 1) * width])
+                    .copied()
+                    .collect(),
+                false => vec![0.0; samples.len() * width],
+            })
+            .collect();
         if n < 2 {
-            return;
+            return kept;
         }
         let pad = self.pad.min(n - 1);
         let series: Vec<(usize, usize)> = (0..columns.len())
@@ -169,12 +226,14 @@ impl ZeroPhaseLowPass {
                     std::array::from_fn(|l| 2.0 * x(l, n - 1) - x(l, n - 1 - i));
             }
             self.run_both_passes(&mut buffer);
-            for (s, v) in buffer[pad..pad + n].iter().enumerate() {
+            for (k, &s) in samples.iter().enumerate() {
+                let v = &buffer[pad + s];
                 for (l, &(c, j)) in batch.iter().enumerate() {
-                    columns[c][s * width + j] = v[l];
+                    kept[c][k * width + j] = v[l];
                 }
             }
         }
+        kept
     }
 
     /// Both passes of every section over the lanes of `buffer`, with the
@@ -198,12 +257,8 @@ impl ZeroPhaseLowPass {
 
     #[inline(always)]
     fn run_both_passes_portable(&self, buffer: &mut [Lanes]) {
-        for section in &self.sections {
-            section.run_lanes(buffer.iter_mut());
-        }
-        for section in &self.sections {
-            section.run_lanes(buffer.iter_mut().rev());
-        }
+        run_cascade(&self.sections, buffer.iter_mut());
+        run_cascade(&self.sections, buffer.iter_mut().rev());
     }
 
     /// Power gain of the zero-phase filter at `f_hz` (|H|^4 of one pass).
@@ -295,6 +350,38 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn kept_samples_are_those_of_the_whole_filtered_series() {
+        let filter = ZeroPhaseLowPass::new(3.0, 1e-3).unwrap();
+        let width = 2;
+        let columns: Vec<Vec<f64>> = (0..9)
+            .map(|c| {
+                (0..3000)
+                    .map(|k| ((k * (c + 1)) as f64 * 0.007).sin())
+                    .collect()
+            })
+            .collect();
+        let mut whole = columns.clone();
+        let mut views: Vec<&mut [f64]> = whole.iter_mut().map(|c| c.as_mut_slice()).collect();
+        filter.apply_interleaved(&mut views, width);
+        let samples: Vec<usize> = (40..1460).step_by(30).chain([1499]).collect();
+        let shared: Vec<&[f64]> = columns.iter().map(|c| c.as_slice()).collect();
+        let kept = filter.apply_interleaved_at(&shared, width, &samples);
+        for (column, kept) in whole.iter().zip(&kept) {
+            let picked = samples
+                .iter()
+                .flat_map(|&s| &column[s * width..(s + 1) * width]);
+            let bits = |x: &f64| x.to_bits();
+            assert!(picked.map(bits).eq(kept.iter().map(bits)));
+        }
+        // Too short to filter: the samples as they are.
+        let short = [&[1.0, 2.0][..]];
+        assert_eq!(
+            filter.apply_interleaved_at(&short, 2, &[0]),
+            vec![vec![1.0, 2.0]]
+        );
     }
 
     proptest! {

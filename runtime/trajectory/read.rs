@@ -310,8 +310,11 @@ pub(super) fn read_table(
         crate::output::note_input(path);
         Box::new(File::open(path).map_err(io_err)?)
     };
+    // The reader trims the header; a record's cells are trimmed as they
+    // are parsed (`str::trim`, what the reader's own trimming of a record
+    // gives), which spares a new record per row for the cells not read.
     let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
+        .trim(csv::Trim::Headers)
         .flexible(true)
         .from_reader(io::BufReader::new(crate::bounded::LineLimited::new(source)));
     let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
@@ -324,8 +327,12 @@ pub(super) fn read_table(
     let used = used_columns(&layout);
     let mut columns = vec![Vec::new(); layout.width];
     let mut lines = Vec::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| csv_error(path, e))?;
+    // One record, reused for every row.
+    let mut record = csv::StringRecord::new();
+    while reader
+        .read_record(&mut record)
+        .map_err(|e| csv_error(path, e))?
+    {
         let line = record.position().map_or(0, |p| p.line());
         if record.len() != layout.width {
             return Err(TrajectoryError::RaggedRow {
@@ -336,7 +343,8 @@ pub(super) fn read_table(
             });
         }
         for &idx in &used {
-            columns[idx].push(parse_cell(path, line, &layout.names[idx], &record[idx])?);
+            let cell = record[idx].trim();
+            columns[idx].push(parse_cell(path, line, &layout.names[idx], cell)?);
         }
         lines.push(line);
     }

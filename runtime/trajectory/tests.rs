@@ -28,6 +28,24 @@ fn reads_contract_file() {
 }
 
 #[test]
+fn cells_and_names_are_read_without_the_blanks_around_them() {
+    let padded = " t , q1,q2 ,qd1,qd2,tau1,tau2\n\
+                  0.0, 1 ,2,3,4,5,6\n\
+                  0.01,1,\t2,3,4,5,6 \n\
+                  0.02,1,2,3,4,5,\u{a0}6\n";
+    let plain = read_csv(write_file("plain", GOOD), &ReadOptions::default()).unwrap();
+    let traj = read_csv(write_file("padded", padded), &ReadOptions::default()).unwrap();
+    assert_eq!(
+        (traj.t(), traj.q(), traj.tau()),
+        (plain.t(), plain.q(), plain.tau())
+    );
+    // A bad cell is named without its blanks.
+    let body = padded.replace(" 1 ,2", " x ,2");
+    let msg = read_err("padded-bad", &body, &ReadOptions::default());
+    assert!(msg.contains("'q1'") && msg.contains("'x'"), "{msg}");
+}
+
+#[test]
 fn maps_columns_by_header_name() {
     let body = "tau1,qd1,time,q1,junk\n5,3,0,1,x\n6,4,1,2,y\n";
     let mut opts = ReadOptions::default();
