@@ -23,6 +23,7 @@ pub mod imports;
 pub mod inputs;
 pub mod kernels;
 pub mod limits;
+pub mod line_ends;
 pub mod mlp;
 pub mod oracle;
 pub mod output;

@@ -313,8 +313,14 @@ pub(super) fn read_table(
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .flexible(true)
-        .from_reader(io::BufReader::new(crate::bounded::LineLimited::new(source)));
-    let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
+        .from_reader(io::BufReader::new(crate::bounded::LineLimited::new(
+            // Every record ends in `\n`, whatever the file's line endings.
+            crate::line_ends::UnixLineEnds::new(source),
+        )));
+    let header = reader
+        .headers()
+        .map_err(|e| csv_error(path, e, None))?
+        .clone();
     if header.is_empty() {
         return Err(TrajectoryError::MissingHeader {
             path: path.to_owned(),
@@ -324,9 +330,15 @@ pub(super) fn read_table(
     let used = used_columns(&layout);
     let mut columns = vec![Vec::new(); layout.width];
     let mut lines = Vec::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| csv_error(path, e))?;
-        let line = record.position().map_or(0, |p| p.line());
+    let mut record = csv::StringRecord::new();
+    loop {
+        let read = reader.read_record(&mut record);
+        // The line the record ends on: where it starts, csv counts the
+        // blank lines it skipped before it.
+        let line = reader.position().line().saturating_sub(1);
+        if !read.map_err(|e| csv_error(path, e, Some(line)))? {
+            break;
+        }
         if record.len() != layout.width {
             return Err(TrajectoryError::RaggedRow {
                 path: path.to_owned(),
@@ -403,8 +415,9 @@ pub(super) fn check_magnitudes(
     Ok(())
 }
 
-pub(super) fn csv_error(path: &Path, e: csv::Error) -> TrajectoryError {
-    let line = e.position().map_or(0, |p| p.line());
+/// `line` overrides csv's own (a record's start, before skipped blanks).
+pub(super) fn csv_error(path: &Path, e: csv::Error, line: Option<u64>) -> TrajectoryError {
+    let line = line.unwrap_or_else(|| e.position().map_or(0, |p| p.line()));
     let message = e.to_string();
     match e.into_kind() {
         csv::ErrorKind::Io(source) => TrajectoryError::Io {
