@@ -36,6 +36,7 @@ pub mod seeds;
 pub mod shell;
 pub mod sim;
 pub mod study;
+pub mod suggest;
 pub mod trajectory;
 
 pub use dynamics::{Dynamics, model, model_names};
