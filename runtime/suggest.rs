@@ -1,4 +1,9 @@
-//! "Did you mean": the known names closest to a mistyped one.
+//! "Did you mean": the known names closest to a mistyped one, and the
+//! files beside a mistyped path.
+
+use std::fs::File;
+use std::io;
+use std::path::Path;
 
 /// The names of `known` nearest to `typed` in edit distance (case
 /// ignored), when they are near enough to be a typo of it: at most one
@@ -27,6 +32,50 @@ pub fn did_you_mean(typed: &str, known: &[&str]) -> Option<String> {
     let near = closest(typed, known);
     let quoted: Vec<String> = near.iter().map(|n| format!("`{n}`")).collect();
     (!near.is_empty()).then(|| format!("did you mean {}?", quoted.join(" or ")))
+}
+
+/// Opens an input file; when that fails, the error says what the path is
+/// instead: a folder (pass its files), a pattern the shell left unexpanded
+/// (no file matched it), or a near name of a file beside it.
+pub fn open_input(path: &Path) -> io::Result<File> {
+    if path.is_dir() {
+        let pattern = path.join("*.csv");
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "a folder, not a file: pass its files (for example {})",
+                pattern.display()
+            ),
+        ));
+    }
+    File::open(path).map_err(|e| match e.kind() {
+        io::ErrorKind::NotFound => io::Error::new(e.kind(), not_found(path)),
+        _ => e,
+    })
+}
+
+/// Why `path`, which does not exist, was not found.
+fn not_found(path: &Path) -> String {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    let name = name.unwrap_or_default();
+    if name.contains(['*', '?', '[']) {
+        return "no such file: a pattern that matched no file (the shell passes it as \
+                written)"
+            .to_owned();
+    }
+    let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+    let folder = folder.unwrap_or(Path::new("."));
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return format!("no such file (nor the folder {})", folder.display());
+    };
+    let beside: Vec<String> = entries
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .collect();
+    let beside: Vec<&str> = beside.iter().map(String::as_str).collect();
+    match did_you_mean(&name, &beside) {
+        Some(hint) => format!("no such file; {hint}"),
+        None => "no such file".to_owned(),
+    }
 }
 
 #[cfg(test)]
@@ -65,5 +114,19 @@ mod tests {
         assert_eq!(said("xyz"), None);
         let tie = did_you_mean("ab", &["aa", "bb"]);
         assert_eq!(tie.as_deref(), Some("did you mean `aa` or `bb`?"));
+    }
+
+    #[test]
+    fn a_path_that_opens_no_file_says_what_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("trajectory_01.csv"), "t\n").unwrap();
+        let said = |name: &str| open_input(&dir.path().join(name)).unwrap_err().to_string();
+        assert!(open_input(&dir.path().join("trajectory_01.csv")).is_ok());
+        assert!(said("trajectory_1.csv").ends_with("did you mean `trajectory_01.csv`?"));
+        assert!(said("*.cvs").contains("a pattern that matched no file"));
+        assert_eq!(said("elsewhere.txt"), "no such file");
+        assert!(said("gone/a.csv").contains("nor the folder"));
+        let folder = open_input(dir.path()).unwrap_err().to_string();
+        assert!(folder.starts_with("a folder, not a file") && folder.ends_with("*.csv)"));
     }
 }

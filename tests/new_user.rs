@@ -177,3 +177,23 @@ fn a_plan_for_another_arm_names_the_plant_flag() {
         "{said}"
     );
 }
+
+#[test]
+fn a_path_that_is_no_recording_says_what_it_is() {
+    let dir = Dir::new();
+    std::fs::create_dir(dir.path().join("rec")).unwrap();
+    dir.write("rec/trajectory_01.csv", "t,q1,qd1,tau1\n0,0,0,0\n");
+    let cases = [
+        (
+            "rec",
+            "a folder, not a file: pass its files (for example rec/*.csv)",
+        ),
+        ("rec/trajectory_1.csv", "did you mean `trajectory_01.csv`?"),
+        ("rec/*.cvs", "a pattern that matched no file"),
+    ];
+    for (data, expected) in cases {
+        let run = sdnn_in(&dir, &["diagnose", "--data", data]);
+        assert_eq!(run.status.code(), Some(2), "{data}");
+        assert!(stderr(&run).contains(expected), "{data}: {}", stderr(&run));
+    }
+}

@@ -308,7 +308,7 @@ pub(super) fn read_table(
         Box::new(io::stdin().lock())
     } else {
         crate::output::note_input(path);
-        Box::new(File::open(path).map_err(io_err)?)
+        Box::new(crate::suggest::open_input(path).map_err(io_err)?)
     };
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
