@@ -7,6 +7,7 @@ use anyhow::{Context, Result};
 use clap::ValueEnum;
 
 use crate::dynamics::{Dynamics, model, model_names};
+use crate::shell::shell_word;
 use crate::trajectory::{AngleUnit, Units};
 
 /// Output format of results printed to standard output.
@@ -65,6 +66,16 @@ fn missing_description(path: &Path) -> String {
 /// No compiled model by this name: the near names, then every name.
 fn unknown_model(name: &str) -> String {
     let names = model_names();
+    if let Some(stem) = name
+        .strip_suffix(".urdf")
+        .filter(|_| Path::new(name).is_file())
+    {
+        let (urdf, toml) = (shell_word(name), shell_word(&format!("{stem}.toml")));
+        return format!(
+            "`{name}` is a URDF: convert it once with `sdnn import-urdf {urdf} --out {toml}` \
+             and pass `--model {toml}`"
+        );
+    }
     let with_toml = format!("{name}.toml");
     if (name.contains('/') || name.contains('\\')) && Path::new(&with_toml).is_file() {
         return format!(

@@ -107,6 +107,14 @@ fn a_missing_description_file_is_named_as_missing() {
         "{}",
         stderr(&run)
     );
+    // A URDF given as the model.
+    dir.write("arm.urdf", "<robot name='a'/>");
+    let run = sdnn_in(&dir, &["pose", "--model", "arm.urdf", "--input", input]);
+    assert!(
+        stderr(&run).contains("`sdnn import-urdf arm.urdf --out arm.toml`"),
+        "{}",
+        stderr(&run)
+    );
 }
 
 #[test]
