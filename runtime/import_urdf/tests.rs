@@ -366,7 +366,7 @@ fn bad_urdf_values_and_structure_are_errors() {
         ),
         (
             arm(&[]).replace("<axis xyz='0 0 1'/>", "<axis xyz='0 0 0'/>"),
-            "joint 'J1' <axis> (line 1): the axis is zero",
+            "joint 'J1' (line 1): its <axis> is zero",
         ),
         (
             arm(&[joint("J9", "fixed", "b", "a")]),
