@@ -205,3 +205,18 @@ fn a_path_that_is_no_recording_says_what_it_is() {
         assert!(stderr(&run).contains(expected), "{data}: {}", stderr(&run));
     }
 }
+
+#[test]
+fn a_study_of_another_arm_names_the_nominal_flag() {
+    let dir = Dir::new();
+    let run = sdnn_in(
+        &dir,
+        &["reproduce", "--plant", "planar_2link", "--out", "r"],
+    );
+    let said = stderr(&run);
+    assert_eq!(run.status.code(), Some(2), "{said}");
+    assert!(
+        said.contains("(the default of --nominal) has 3") && said.contains("`--nominal MODEL`"),
+        "{said}"
+    );
+}
