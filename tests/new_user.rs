@@ -220,3 +220,27 @@ fn a_study_of_another_arm_names_the_nominal_flag() {
         "{said}"
     );
 }
+
+#[test]
+fn the_other_direction_of_the_dynamics_is_named() {
+    let dir = Dir::new();
+    let torques = dir.write("forces.csv", "q1,q2,qd1,qd2,tau1,tau2\n0,0,0,0,1,1\n");
+    let states = dir.write("states.csv", "q1,q2,qd1,qd2,qdd1,qdd2\n0,0,0,0,1,1\n");
+    for (command, input, expected) in [
+        (
+            "tau",
+            &torques,
+            "`sdnn qdd` computes qdd from q, qd and tau",
+        ),
+        ("qdd", &states, "`sdnn tau` computes tau from q, qd and qdd"),
+    ] {
+        let input = input.to_str().unwrap();
+        let run = sdnn(&[command, "--model", "planar_2link", "--input", input]);
+        assert_eq!(run.status.code(), Some(2), "{command}");
+        assert!(
+            stderr(&run).contains(expected),
+            "{command}: {}",
+            stderr(&run)
+        );
+    }
+}
