@@ -330,15 +330,15 @@ pub(super) fn read_table(
     let used = used_columns(&layout);
     let mut columns = vec![Vec::new(); layout.width];
     let mut lines = Vec::new();
+    // One record, reused for every row. Its line is the one it ends on
+    // (where it starts, csv counts the blank lines it skipped before it).
     let mut record = csv::StringRecord::new();
-    loop {
-        let read = reader.read_record(&mut record);
-        // The line the record ends on: where it starts, csv counts the
-        // blank lines it skipped before it.
-        let line = reader.position().line().saturating_sub(1);
-        if !read.map_err(|e| csv_error(path, e, Some(line)))? {
-            break;
-        }
+    let ended_on = |reader: &csv::Reader<_>| reader.position().line().saturating_sub(1);
+    while reader
+        .read_record(&mut record)
+        .map_err(|e| csv_error(path, e, Some(ended_on(&reader))))?
+    {
+        let line = ended_on(&reader);
         if record.len() != layout.width {
             return Err(TrajectoryError::RaggedRow {
                 path: path.to_owned(),
