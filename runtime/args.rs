@@ -1,10 +1,13 @@
 //! Argument types the commands share (output format, angle unit) and the
 //! lookup of `--model`: a compiled model's name or a description file.
 
+use std::path::Path;
+
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 
 use crate::dynamics::{Dynamics, model, model_names};
+use crate::shell::shell_word;
 use crate::trajectory::{AngleUnit, Units};
 
 /// Output format of results printed to standard output.
@@ -34,17 +37,59 @@ impl From<AngleArg> for Units {
     }
 }
 
-/// The compiled model with this name, or an error listing the names.
+/// The compiled model with this name, or the description file at this
+/// path; an error names the near names (a typo) or the missing file.
 pub fn find_model(name: &str) -> Result<&'static dyn Dynamics> {
     if let Some(path) = model_path(name) {
+        if !path.exists() {
+            anyhow::bail!("{}", missing_description(&path));
+        }
         return Ok(crate::described::Described::load(&path)?);
     }
-    model(name).with_context(|| {
-        format!(
-            "no compiled model named `{name}`; compiled models: {} (add models/{name}.toml and rebuild, or pass a description file path ending in .toml)",
-            model_names().join(", ")
-        )
-    })
+    model(name).with_context(|| unknown_model(name))
+}
+
+/// A `.toml` argument that names no file; a compiled model's name written
+/// as a file (`panda.toml` outside the repository) says so.
+fn missing_description(path: &Path) -> String {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+    let compiled = stem.filter(|s| model(s).is_some());
+    let hint = match compiled {
+        Some(stem) => format!("; `{stem}` is a compiled model: name it without `.toml`"),
+        None => " (a path from the current folder; `--model` also takes a compiled \
+                  model's name, `sdnn models` lists them)"
+            .to_owned(),
+    };
+    format!("model description file {} not found{hint}", path.display())
+}
+
+/// No compiled model by this name: the near names, then every name.
+fn unknown_model(name: &str) -> String {
+    let names = model_names();
+    if let Some(stem) = name
+        .strip_suffix(".urdf")
+        .filter(|_| Path::new(name).is_file())
+    {
+        let (urdf, toml) = (shell_word(name), shell_word(&format!("{stem}.toml")));
+        return format!(
+            "`{name}` is a URDF: convert it once with `sdnn import-urdf {urdf} --out {toml}` \
+             and pass `--model {toml}`"
+        );
+    }
+    let with_toml = format!("{name}.toml");
+    if (name.contains('/') || name.contains('\\')) && Path::new(&with_toml).is_file() {
+        return format!(
+            "`{name}` is a path without `.toml`: did you mean `{with_toml}`? (a description \
+             file's path ends in .toml)"
+        );
+    }
+    let near =
+        crate::suggest::did_you_mean(name, &names).map_or(String::new(), |s| format!(" ({s})"));
+    format!(
+        "no compiled model named `{name}`{near}; compiled models: {} (add models/{name}.toml \
+         and rebuild, or pass a description file path ending in .toml)",
+        names.join(", ")
+    )
 }
 
 /// Refuses `--angles deg` for a model with prismatic joints: their columns

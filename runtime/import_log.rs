@@ -171,7 +171,10 @@ fn read_values(path: &Path) -> Result<Vec<f64>, ImportLogError> {
     if body.is_empty() {
         return Ok(Vec::new());
     }
-    body.split(|&b| b == b'\n')
+    // Lines end in `\n` (Unix; Windows' `\r` is trimmed) or, in a file
+    // without one, in `\r` (classic Mac): each line is then its own.
+    let newline = if body.contains(&b'\n') { b'\n' } else { b'\r' };
+    body.split(|&b| b == newline)
         .enumerate()
         .map(|(i, raw)| parse_line(path, i + 1, raw))
         .collect()
@@ -356,6 +359,24 @@ mod tests {
     fn rejects_non_numbers_with_file_and_line() {
         let msg = read_err(2, T, "0.1\n0.2\nabc\n0.4\n", QD, TAU);
         assert_mentions(&msg, &["positions.txt", "line 3", "\"abc\""]);
+    }
+
+    #[test]
+    fn names_the_same_line_whatever_the_line_endings() {
+        for ending in ["\n", "\r\n", "\r"] {
+            let q = ["0.1", "0.2", "abc", "0.4"]
+                .map(|v| format!("{v}{ending}"))
+                .concat();
+            let msg = read_err(2, T, &q, QD, TAU);
+            assert_mentions(&msg, &["positions.txt", "line 3", "\"abc\""]);
+            let time = format!("0{ending}0.001{ending}");
+            let (_dir, src) = sources(2, &time, Q, QD, TAU);
+            assert_eq!(
+                read_line_major(&src).unwrap().t,
+                vec![0.0, 0.001],
+                "{ending:?}"
+            );
+        }
     }
 
     #[test]

@@ -23,6 +23,7 @@ pub mod imports;
 pub mod inputs;
 pub mod kernels;
 pub mod limits;
+pub mod line_ends;
 pub mod mlp;
 pub mod oracle;
 pub mod output;
@@ -35,6 +36,7 @@ pub mod seeds;
 pub mod shell;
 pub mod sim;
 pub mod study;
+pub mod suggest;
 pub mod trajectory;
 
 pub use dynamics::{Dynamics, model, model_names};

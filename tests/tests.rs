@@ -20,6 +20,7 @@ mod inertial;
 mod intervals;
 mod lumping;
 mod module_graph;
+mod new_user;
 mod pointwise;
 mod prismatic;
 mod readers_fuzz;

@@ -68,10 +68,42 @@ pub struct SimulateArgs {
     /// Seconds per trajectory (above 0, at most 3600).
     #[arg(long, default_value_t = 20.0, value_parser = ranges::real(0.0, 3600.0, true, "record several trajectories"))]
     pub duration: f64,
-    #[arg(long, default_value = DEFAULT_PLANT)]
-    pub plant: String,
-    #[arg(long, default_value = DEFAULT_NOMINAL)]
-    pub nominal: String,
+    /// The arm that moves (the truth recorded), a compiled model's name or
+    /// a .toml file [default: kinova_gen3_lite_3dof_plant, the thesis
+    /// model plus joint friction and armature].
+    #[arg(long)]
+    pub plant: Option<String>,
+    /// The controller's model of the arm (computed-torque tracking; its
+    /// limits bound the random motions) [default: the --plant given, else
+    /// kinova_gen3_lite_3dof].
+    #[arg(long)]
+    pub nominal: Option<String>,
+}
+
+impl SimulateArgs {
+    /// The plant and the controller's model. Without `--nominal` the
+    /// controller knows a `--plant` given (the default 3-joint model
+    /// would not fit another arm); the two must have the same joints.
+    fn models(&self) -> Result<(&'static dyn Dynamics, &'static dyn Dynamics)> {
+        let plant = find_model(self.plant.as_deref().unwrap_or(DEFAULT_PLANT))?;
+        let nominal = match (&self.nominal, &self.plant) {
+            (Some(nominal), _) => find_model(nominal)?,
+            (None, Some(_)) => plant,
+            (None, None) => find_model(DEFAULT_NOMINAL)?,
+        };
+        if nominal.dof() != plant.dof() {
+            bail!(
+                "--nominal {} has {} joints and --plant {} has {}: the controller's model \
+                 (--nominal) is a model of the plant, with its joints; leave --nominal out \
+                 to control the plant with its own model",
+                nominal.name(),
+                nominal.dof(),
+                plant.name(),
+                plant.dof()
+            );
+        }
+        Ok((plant, nominal))
+    }
 }
 
 /// Most recorded seconds one `simulate` run writes, or one study records (10 h, about 2 GB of
@@ -114,7 +146,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
             args.duration
         );
     }
-    let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    let (plant, nominal) = args.models()?;
     let what = format!("--count {} x --duration {}", args.count, args.duration);
     check_simulated_seconds(&what, total, plant.dof())?;
     let staged = begin_recordings(&args.out, args.count)?;
@@ -188,13 +220,27 @@ fn refuse_stale_recordings(dir: &Path, count: usize) -> Result<()> {
 
 /// Records one planned motion read from `path` on the virtual robot.
 fn simulate_plan(args: &SimulateArgs, path: &Path) -> Result<()> {
-    let (plant, nominal) = (find_model(&args.plant)?, find_model(&args.nominal)?);
+    let (plant, nominal) = args.models()?;
     let options = ReadOptions {
         dof: Some(plant.dof()),
         ..ReadOptions::default()
     };
     crate::output::note_input(path);
-    let plan = crate::trajectory::read_plan_csv(path, &options)?;
+    let plan = crate::trajectory::read_plan_csv(path, &options).map_err(|e| match e {
+        // A plan for another arm (`excite --model panda`): name the plant.
+        crate::trajectory::TrajectoryError::WrongDof { .. } => anyhow::anyhow!(
+            "{e}: the plant `{}`{} has {} joints; pass `--plant MODEL`, the arm the plan was \
+             designed for (`sdnn excite --model MODEL`)",
+            plant.name(),
+            if args.plant.is_none() {
+                ", the default when `--plant` is not given,"
+            } else {
+                ""
+            },
+            plant.dof()
+        ),
+        e => e.into(),
+    })?;
     if plan
         .t()
         .last()

@@ -10,7 +10,8 @@ use nalgebra::DMatrix;
 use crate::args::{AngleArg, check_angle_units, find_model};
 use crate::dynamics::Dynamics;
 use crate::trajectory::{
-    AngleUnit, ReadOptions, read_forward_csv, read_positions_csv, read_states_csv, write_columns,
+    AngleUnit, ReadOptions, TrajectoryError, read_forward_csv, read_positions_csv, read_states_csv,
+    write_columns,
 };
 
 /// What the sample-by-sample commands take.
@@ -86,6 +87,25 @@ impl PointwiseArgs {
     }
 }
 
+/// A file without the input channel of `command` (`prefix1..`): the
+/// other direction of the dynamics, `other`, may be what was meant.
+fn name_the_other_command(
+    error: TrajectoryError,
+    prefix: &str,
+    command: &str,
+    other: &str,
+) -> anyhow::Error {
+    match &error {
+        TrajectoryError::MissingColumn { column, .. } if column == &format!("{prefix}1") => {
+            anyhow::anyhow!(
+                "{error}: `sdnn {command}` computes {command} from q, qd and {prefix}; \
+                 `sdnn {other}` computes {other} from q, qd and {command}"
+            )
+        }
+        _ => error.into(),
+    }
+}
+
 fn row(m: &DMatrix<f64>, r: usize) -> Vec<f64> {
     m.row(r).iter().copied().collect()
 }
@@ -93,7 +113,8 @@ fn row(m: &DMatrix<f64>, r: usize) -> Vec<f64> {
 /// `sdnn tau`: q, qd, qdd -> tau1..tauN.
 pub fn tau(args: &PointwiseArgs) -> Result<()> {
     let (model, options) = args.open()?;
-    let states = read_states_csv(&args.input, &options)?;
+    let states = read_states_csv(&args.input, &options)
+        .map_err(|e| name_the_other_command(e, "qdd", "tau", "qdd"))?;
     args.warn_beyond_limits(model, states.q(), options.units.angles);
     let mut tau = DMatrix::zeros(states.len(), model.dof());
     for r in 0..states.len() {
@@ -110,7 +131,8 @@ pub fn tau(args: &PointwiseArgs) -> Result<()> {
 /// `sdnn qdd`: q, qd, tau -> qdd1..qddN, in the input's angle unit.
 pub fn qdd(args: &PointwiseArgs) -> Result<()> {
     let (model, options) = args.open()?;
-    let [q, qd, tau] = read_forward_csv(&args.input, &options)?;
+    let [q, qd, tau] = read_forward_csv(&args.input, &options)
+        .map_err(|e| name_the_other_command(e, "tau", "qdd", "tau"))?;
     args.warn_beyond_limits(model, &q, options.units.angles);
     let scale = match options.units.angles {
         AngleUnit::Degrees => 180.0 / std::f64::consts::PI,

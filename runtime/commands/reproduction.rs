@@ -179,6 +179,29 @@ pub enum Situation {
     Thesis,
 }
 
+/// A `--plant` of another arm than the analytical model: the error names
+/// the flag that chooses the model the study compares.
+fn check_nominal_fits(plant: &dyn Dynamics, nominal: &dyn Dynamics, given: bool) -> Result<()> {
+    if plant.dof() == nominal.dof() {
+        return Ok(());
+    }
+    bail!(
+        "--plant {} has {} joints and the analytical model `{}`{} has {}: pass `--nominal \
+         MODEL`, the analytical model of that arm the study compares (for example \
+         `--nominal {}`)",
+        plant.name(),
+        plant.dof(),
+        nominal.name(),
+        if given {
+            " (--nominal)"
+        } else {
+            " (the default of --nominal)"
+        },
+        nominal.dof(),
+        plant.name()
+    )
+}
+
 /// The thesis situation's plant and controller model.
 const THESIS_PLANT: &str = "kinova_gen3_lite_urdf_plant";
 
@@ -219,6 +242,7 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<()> {
             (plant, plant)
         }
     };
+    check_nominal_fits(plant, nominal, args.nominal.is_some())?;
     let what = format!(
         "--trajectories {} x --duration {}",
         args.trajectories, args.duration

@@ -154,8 +154,9 @@ pub(super) fn convert_joint(
     };
     if kind != KindOut::Fixed && data.axis.iter().all(|&a| a == 0.0) {
         return Err(invalid(
-            format!("joint '{}' <axis> (line {})", joint.name, joint.line),
-            "the axis is zero",
+            // The joint's line: the parsed data keeps none of its <axis>.
+            format!("joint '{}' (line {})", joint.name, joint.line),
+            "its <axis> is zero",
         ));
     }
     let moving = *role == Role::Moving;

@@ -198,11 +198,17 @@ fn check_counts(root: Node<'_, '_>) -> Result<(), ImportError> {
 
 /// 1-based line of a byte offset.
 fn line_at(text: &str, offset: usize) -> usize {
-    text.as_bytes()[..offset.min(text.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
+    line_ends(text).take_while(|&i| i < offset).count() + 1
+}
+
+/// Byte offsets of the line ends: `\n`, or a `\r` not followed by one
+/// (a classic Mac file; Windows' `\r\n` is one line end, at its `\n`).
+fn line_ends(text: &str) -> impl Iterator<Item = usize> + '_ {
+    let bytes = text.as_bytes();
+    bytes.iter().enumerate().filter_map(move |(i, &b)| {
+        let lone_cr = b == b'\r' && bytes.get(i + 1) != Some(&b'\n');
+        (b == b'\n' || lone_cr).then_some(i)
+    })
 }
 
 fn element<'a, 'i>(node: Node<'a, 'i>, tag: &str) -> Option<Node<'a, 'i>> {
@@ -221,11 +227,7 @@ struct Reader<'t> {
 
 impl<'t> Reader<'t> {
     fn new(text: &'t str) -> Reader<'t> {
-        let newlines = text
-            .bytes()
-            .enumerate()
-            .filter_map(|(i, b)| (b == b'\n').then_some(i))
-            .collect();
+        let newlines = line_ends(text).collect();
         Reader { text, newlines }
     }
 

@@ -336,6 +336,24 @@ fn irrelevant_elements_are_one_note() {
 }
 
 #[test]
+fn errors_name_the_same_line_whatever_the_line_endings() {
+    let bad = arm(&[]).replacen("value='1'", "value='-1'", 1);
+    // One element a line; the bad mass is on the line an editor shows.
+    let lines = bad.replace("><", ">\n<");
+    let at = lines.find("<mass value='-1'/>").unwrap();
+    let line = lines[..at].matches('\n').count() + 1;
+    for ending in ["\n", "\r\n", "\r"] {
+        let text = lines.replace('\n', ending);
+        let message = error(&text, &options("b"));
+        let named = format!("<mass> (line {line})");
+        assert!(
+            message.contains(&named),
+            "{ending:?}: {message}, not {named}"
+        );
+    }
+}
+
+#[test]
 fn bad_urdf_values_and_structure_are_errors() {
     let cases = [
         (
@@ -348,7 +366,7 @@ fn bad_urdf_values_and_structure_are_errors() {
         ),
         (
             arm(&[]).replace("<axis xyz='0 0 1'/>", "<axis xyz='0 0 0'/>"),
-            "joint 'J1' <axis> (line 1): the axis is zero",
+            "joint 'J1' (line 1): its <axis> is zero",
         ),
         (
             arm(&[joint("J9", "fixed", "b", "a")]),

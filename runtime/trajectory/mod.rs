@@ -10,7 +10,6 @@
 //! header on line 1 (so the first data row is line 2).
 
 use std::collections::{HashMap, HashSet};
-use std::fs::File;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 

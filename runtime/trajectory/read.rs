@@ -308,7 +308,7 @@ pub(super) fn read_table(
         Box::new(io::stdin().lock())
     } else {
         crate::output::note_input(path);
-        Box::new(File::open(path).map_err(io_err)?)
+        Box::new(crate::suggest::open_input(path).map_err(io_err)?)
     };
     // The reader trims the header; a record's cells are trimmed as they
     // are parsed (`str::trim`, what the reader's own trimming of a record
@@ -316,8 +316,14 @@ pub(super) fn read_table(
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::Headers)
         .flexible(true)
-        .from_reader(io::BufReader::new(crate::bounded::LineLimited::new(source)));
-    let header = reader.headers().map_err(|e| csv_error(path, e))?.clone();
+        .from_reader(io::BufReader::new(crate::bounded::LineLimited::new(
+            // Every record ends in `\n`, whatever the file's line endings.
+            crate::line_ends::UnixLineEnds::new(source),
+        )));
+    let header = reader
+        .headers()
+        .map_err(|e| csv_error(path, e, None))?
+        .clone();
     if header.is_empty() {
         return Err(TrajectoryError::MissingHeader {
             path: path.to_owned(),
@@ -327,13 +333,15 @@ pub(super) fn read_table(
     let used = used_columns(&layout);
     let mut columns = vec![Vec::new(); layout.width];
     let mut lines = Vec::new();
-    // One record, reused for every row.
+    // One record, reused for every row. Its line is the one it ends on
+    // (where it starts, csv counts the blank lines it skipped before it).
     let mut record = csv::StringRecord::new();
+    let ended_on = |reader: &csv::Reader<_>| reader.position().line().saturating_sub(1);
     while reader
         .read_record(&mut record)
-        .map_err(|e| csv_error(path, e))?
+        .map_err(|e| csv_error(path, e, Some(ended_on(&reader))))?
     {
-        let line = record.position().map_or(0, |p| p.line());
+        let line = ended_on(&reader);
         if record.len() != layout.width {
             return Err(TrajectoryError::RaggedRow {
                 path: path.to_owned(),
@@ -411,8 +419,9 @@ pub(super) fn check_magnitudes(
     Ok(())
 }
 
-pub(super) fn csv_error(path: &Path, e: csv::Error) -> TrajectoryError {
-    let line = e.position().map_or(0, |p| p.line());
+/// `line` overrides csv's own (a record's start, before skipped blanks).
+pub(super) fn csv_error(path: &Path, e: csv::Error, line: Option<u64>) -> TrajectoryError {
+    let line = line.unwrap_or_else(|| e.position().map_or(0, |p| p.line()));
     let message = e.to_string();
     match e.into_kind() {
         csv::ErrorKind::Io(source) => TrajectoryError::Io {

@@ -221,3 +221,69 @@ proptest! {
         prop_assert_eq!(back, traj);
     }
 }
+
+/// A recording of `rows` good rows with one fault on row `bad` (0-based),
+/// a blank line after row `blank` when it is one, every line ended by
+/// `ending`; and the line an editor shows the fault on.
+fn faulty_recording(
+    rows: usize,
+    bad: usize,
+    fault: &str,
+    blank: usize,
+    ending: &str,
+) -> (String, u64) {
+    let mut lines = vec!["t,q1,qd1,tau1".to_owned()];
+    let mut fault_line = 0;
+    for r in 0..rows {
+        let t = if r == bad && fault == "time" {
+            0.0
+        } else {
+            r as f64 * 0.01
+        };
+        let row = match fault {
+            _ if r != bad => format!("{t},0.1,0.2,0.3"),
+            "text" => format!("{t},abc,0.2,0.3"),
+            "nan" => format!("{t},0.1,NaN,0.3"),
+            "ragged" => format!("{t},0.1,0.2"),
+            "huge" => format!("{t},0.1,0.2,1e9"),
+            "utf8" => format!("{t},0.1,0.2,0.3\u{1}"),
+            _ => format!("{t},0.1,0.2,0.3"),
+        };
+        lines.push(row);
+        if r == bad {
+            fault_line = lines.len() as u64;
+        }
+        if r == blank {
+            lines.push(String::new());
+        }
+    }
+    let text = lines.iter().map(|l| format!("{l}{ending}")).collect();
+    (text, fault_line)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Windows (CRLF) and classic Mac (CR) files name the same line as a
+    /// Unix file: the editor's.
+    #[test]
+    fn errors_name_the_editors_line_for_any_line_ending(
+        rows in 2usize..12,
+        bad in 1usize..12,
+        blank in 0usize..14,
+        fault in prop::sample::select(vec!["text", "nan", "ragged", "huge", "time", "utf8"]),
+        ending in prop::sample::select(vec!["\n", "\r\n", "\r"]),
+    ) {
+        let bad = bad.min(rows - 1);
+        let (body, line) = faulty_recording(rows, bad, fault, blank, ending);
+        // `\u{1}` marks the byte that makes the row invalid UTF-8.
+        let bytes: Vec<u8> = body.bytes().map(|b| if b == 1 { 0xff } else { b }).collect();
+        let path = scratch("endings").join("in.csv");
+        std::fs::write(&path, bytes).unwrap();
+        let msg = read_csv(&path, &ReadOptions::default()).unwrap_err().to_string();
+        let named = format!("line {line}");
+        prop_assert!(
+            msg.contains(&format!("{named},")) || msg.contains(&format!("{named}:")),
+            "{:?} ended by {:?}: {}", fault, ending, msg
+        );
+    }
+}
