@@ -39,9 +39,9 @@ fn tilted(model: &dyn Dynamics) -> Tilted {
     }
 }
 
-/// Every signal of `stage`, produced with at most `budget` bytes of raw
-/// columns at once.
-fn produced(stage: Stage, budget: usize) -> Rows {
+/// `run` given the inputs of the 3-DOF arm's recording (a tilted base,
+/// rest speed 0.05, unit levers) and the recording itself.
+fn with_inputs<T>(run: impl FnOnce(&Inputs, &Trajectory) -> T) -> T {
     let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
     let traj = recording(model);
     let tilted = tilted(model);
@@ -57,23 +57,31 @@ fn produced(stage: Stage, budget: usize) -> Rows {
         band: &band,
         levers: &levers,
     };
-    let samples: Vec<usize> = (50..SAMPLES - 50).step_by(10).collect();
-    let keep = Keep {
-        cutoff_hz: Some(15.0),
-        dt: DT,
-        samples: &samples,
-    };
-    let mut rows = Rows::with_columns(3, (stage, true));
-    let signals = rows.signals();
-    let bad = produce(
-        &mut rows,
-        &signals,
-        &inputs,
-        &keep,
-        (&mut Vec::new(), budget),
-    );
-    assert_eq!(bad.unwrap(), None);
-    rows
+    run(&inputs, &traj)
+}
+
+/// Every signal of `stage`, produced with at most `budget` bytes of raw
+/// columns at once.
+fn produced(stage: Stage, budget: usize) -> Rows {
+    with_inputs(|inputs, _| {
+        let samples: Vec<usize> = (50..SAMPLES - 50).step_by(10).collect();
+        let keep = Keep {
+            cutoff_hz: Some(15.0),
+            dt: DT,
+            samples: &samples,
+        };
+        let mut rows = Rows::with_columns(3, (stage, true));
+        let signals = rows.signals();
+        let bad = produce(
+            &mut rows,
+            &signals,
+            inputs,
+            &keep,
+            (&mut Vec::new(), budget),
+        );
+        assert_eq!(bad.unwrap(), None);
+        rows
+    })
 }
 
 fn bits(v: &[f64]) -> Vec<u64> {
@@ -98,40 +106,27 @@ fn batches_of_any_size_give_the_same_rows() {
 
 #[test]
 fn any_number_of_parts_builds_the_same_columns() {
-    let model = crate::dynamics::model("kinova_gen3_lite_3dof").unwrap();
-    let traj = recording(model);
-    let tilted = tilted(model);
-    let band = Band {
-        qd: traj.qd().clone(),
-        rest: vec![0.05; 3],
-    };
-    let levers = [1.0; 3];
-    let inputs = Inputs {
-        model,
-        tilted: Some(&tilted),
-        traj: Some(&traj),
-        band: &band,
-        levers: &levers,
-    };
-    let derived = derived(model, &traj).unwrap();
-    for stage in [Stage::Motion, Stage::Reversals] {
-        let signals = Rows::with_columns(3, (stage, true)).signals();
-        let built = |count: usize, with: Option<&Derived>| {
-            // Memory reused from a longer build must not show through
-            // (it holds a different value for each count).
-            let stale = count as f64 + 0.5;
-            let mut columns = vec![vec![stale; 4 * SAMPLES * 3]; signals.len()];
-            build_in_parts(&signals, &mut columns, (&inputs, with), count).unwrap();
-            columns.iter().map(|c| bits(c)).collect::<Vec<_>>()
-        };
-        for with in [Some(&derived), None] {
-            let one = built(1, with);
-            assert!(one.iter().any(|c| c.len() == SAMPLES * 3));
-            for count in [2, 3, 7] {
-                assert_eq!(one, built(count, with), "{stage:?} in {count} parts");
+    with_inputs(|inputs, traj| {
+        let derived = derived(inputs.model, traj).unwrap();
+        for stage in [Stage::Motion, Stage::Reversals] {
+            let signals = Rows::with_columns(3, (stage, true)).signals();
+            let built = |count: usize, with: Option<&Derived>| {
+                // Memory reused from a longer build must not show through
+                // (it holds a different value for each count).
+                let stale = count as f64 + 0.5;
+                let mut columns = vec![vec![stale; 4 * SAMPLES * 3]; signals.len()];
+                build_in_parts(&signals, &mut columns, (inputs, with), count).unwrap();
+                columns.iter().map(|c| bits(c)).collect::<Vec<_>>()
+            };
+            for with in [Some(&derived), None] {
+                let one = built(1, with);
+                assert!(one.iter().any(|c| c.len() == SAMPLES * 3));
+                for count in [2, 3, 7] {
+                    assert_eq!(one, built(count, with), "{stage:?} in {count} parts");
+                }
             }
         }
-    }
+    })
 }
 
 #[test]
