@@ -225,7 +225,7 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
     let shares: Vec<Vec<f64>> = (0..n)
         .map(|i| {
             let mut asked = vec![(0, i, 1.0)];
-            asked.extend((0..n).map(|f| (1 + f, i, flip(f)[i])));
+            asked.extend((0..n).map(|f| (1 + f, i, if i == f { -1.0 } else { 1.0 })));
             asked.extend(pairs.iter().enumerate().filter_map(|(p, &(j, k))| match i {
                 _ if i == j => Some((1 + n + p, k, 1.0)),
                 _ if i == k => Some((1 + n + p, j, 1.0)),
