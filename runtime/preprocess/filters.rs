@@ -404,6 +404,42 @@ mod tests {
         }
     }
 
+    /// A joint that moves for 1 s and then stands still, logged as exactly
+    /// zero: the Butterworth's tail of the move is not motion, so the
+    /// filtered velocity is zero wherever the log says zero, and the move
+    /// itself keeps its filtered velocity.
+    #[test]
+    fn a_joint_logged_still_has_zero_filtered_velocity() {
+        let n = 4000;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+        let pi = std::f64::consts::PI;
+        let moving = |t: f64| t < 1.0;
+        let q = DMatrix::from_fn(n, 1, |i, _| 0.5 * (1.0 - (pi * t[i].min(1.0)).cos()));
+        let qd = DMatrix::from_fn(n, 1, |i, _| {
+            if moving(t[i]) {
+                0.5 * pi * (pi * t[i]).sin()
+            } else {
+                0.0
+            }
+        });
+        let tau = DMatrix::from_element(n, 1, 0.0);
+        let traj = Trajectory::new(t.clone(), q, qd.clone(), None, tau).unwrap();
+        let butterworth = Preprocess {
+            filter: Filter::Butterworth { cutoff_hz: 5.0 },
+            downsample: 1,
+            ..Preprocess::default()
+        };
+        let filtered = butterworth.filter_at_full_rate(&traj).unwrap();
+        let tail = butterworth.smooth_columns(&qd, 1e-3).unwrap();
+        let still: Vec<usize> = (0..n).filter(|&i| !moving(t[i])).collect();
+        assert!(
+            still.iter().any(|&i| tail[(i, 0)] != 0.0),
+            "no tail to remove"
+        );
+        assert!(still.iter().all(|&i| filtered.qd()[(i, 0)] == 0.0));
+        assert_eq!(filtered.qd()[(500, 0)], tail[(500, 0)]);
+    }
+
     #[test]
     fn too_short_for_window_is_an_error() {
         let cfg = Preprocess {

@@ -145,13 +145,14 @@ impl Preprocess {
             });
         }
         let dt = step(traj);
-        let qd = self.smooth_columns(traj.qd(), dt)?;
+        let mut qd = self.smooth_columns(traj.qd(), dt)?;
         let mut qdd = DMatrix::zeros(traj.len(), traj.dof());
         for j in 0..traj.dof() {
             let v: Vec<f64> = qd.column(j).iter().copied().collect();
             qdd.column_mut(j)
                 .copy_from_slice(&central_difference(&v, dt)?);
         }
+        still_where_logged_still(&mut qd, traj.qd());
         let q = match self.filter {
             Filter::Butterworth { .. } => self.smooth_columns(traj.q(), dt)?,
             _ => traj.q().clone(),
@@ -240,4 +241,19 @@ impl Preprocess {
 pub fn step(traj: &Trajectory) -> f64 {
     let n = traj.len();
     (traj.t()[n - 1] - traj.t()[0]) / (n - 1).max(1) as f64
+}
+
+/// A joint whose logged velocity is exactly zero stands still, and its
+/// filtered velocity is set to zero there too. A recursive low-pass leaves
+/// a decaying tail of the motion before a stop (1e-3 .. 1e-10 rad/s for
+/// seconds); the model's sign(qd) would read that tail as motion and apply
+/// full Coulomb friction with the tail's sign to a joint at rest (arms
+/// that log 0 at rest, e.g. a UR's 4-decimal velocities, rest a third of
+/// an identification run). The acceleration stays the filtered one.
+fn still_where_logged_still(filtered: &mut DMatrix<f64>, logged: &DMatrix<f64>) {
+    for (v, &raw) in filtered.iter_mut().zip(logged.iter()) {
+        if raw == 0.0 {
+            *v = 0.0;
+        }
+    }
 }
