@@ -170,8 +170,8 @@ fn plausible_body(
         format!(
             "{at}: the data fit a body of {mass:.4} kg whose inertia puts its mass {rms:.2} m \
              from the link origin on average (root mean square), beyond the {bound:.2} m the \
-             link's span allows: not a physical correction of this link but the trace of another effect \
-             (an armature?); not named (it {cut})"
+             link's span allows: not a physical correction of this link but the trace of \
+             another effect (an armature?); not named (it {cut})"
         )
     })
 }
@@ -194,15 +194,17 @@ fn spread_within(candidate: &Candidate, body: &[f64; 10], reach: f64) -> Result<
     let second_moment = |p: &[f64; 10]| (p[4] + p[6] + p[9]) / 2.0;
     let (mass, modelled) = (body[0], &candidate.modelled);
     let span = candidate.extent.min(reach);
-    let described = match modelled[0] > 0.0 {
-        true => second_moment(modelled) / modelled[0],
-        false => 0.0,
+    let described = if modelled[0] > 0.0 {
+        second_moment(modelled) / modelled[0]
+    } else {
+        0.0
     };
     let allowed = SPREAD_FACTOR.powi(2) * span.powi(2).max(described);
     let mean_square = second_moment(body) / mass;
-    match mean_square <= allowed {
-        true => Ok(()),
-        false => Err((mean_square.sqrt(), allowed.sqrt())),
+    if mean_square <= allowed {
+        Ok(())
+    } else {
+        Err((mean_square.sqrt(), allowed.sqrt()))
     }
 }
 
