@@ -25,6 +25,7 @@ real arm".
 
 import argparse
 import io
+import json
 import re
 import subprocess
 import sys
@@ -63,7 +64,6 @@ def sdnn(binary, *args) -> subprocess.CompletedProcess:
 
 
 def evaluate_mse(binary, toml, files):
-    import json
     out = sdnn(binary, "evaluate", "--model", toml, "--data", *files, "--format", "json").stdout
     return json.loads(out)["mse"]
 
@@ -181,9 +181,10 @@ def main():
     print("held-out MSE (N m^2) on", ", ".join(VALIDATION))
     print(f"{'URDF, evaluate':44}", np.array(evaluate_mse(binary, described, [csv[n] for n in VALIDATION])))
     sets = [IDENTIFICATION] + [[n] for n in IDENTIFICATION]
+    applied_from = {}
     for names in sets:
         label = "3 recordings" if len(names) == 3 else names[0]
-        applied = work / f"applied-{len(names)}-{names[0]}.toml"
+        applied = applied_from[len(names), names[0]] = work / f"applied-{len(names)}-{names[0]}.toml"
         applied.write_text(described.read_text())
         sdnn(binary, "diagnose", "--model", described, "--data", *[csv[n] for n in names],
              "--apply", "--toml", applied)
@@ -202,9 +203,8 @@ def main():
             data = model.createData()
             ols = emulated_mse(lambda r: columns(model, data, r, kinds) @ theta, validation)
             print(f"{'OLS ' + kinds + ', ' + label:44}", ols, " applied / OLS", (ours / ols).round(3))
-    found = sdnn(binary, "diagnose", "--model", work / "applied-3-" f"{IDENTIFICATION[0]}.toml",
-                 "--data", csv[LOADED[0]], "--format", "json").stdout
-    import json
+    three = applied_from[len(IDENTIFICATION), IDENTIFICATION[0]]
+    found = sdnn(binary, "diagnose", "--model", three, "--data", csv[LOADED[0]], "--format", "json").stdout
     for e in json.loads(found)["effects"]:
         mass = e["parameters"].get("mass")
         print(f"loaded run ({LOADED[1]} kg): {e['kind']} {e.get('link') or e.get('joint')} mass {mass} "
