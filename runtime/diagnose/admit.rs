@@ -6,13 +6,13 @@
 use nalgebra::{DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, width};
-use super::data::EXTENT_MARGIN;
 use super::fit::{Fit, fit};
 use super::gain::Gain;
 use super::kind::Kind;
 use super::moments::Moments;
+use super::stacked::EXTENT_MARGIN;
 use super::uncertainty::{fit_robust, robust_quantity};
-use super::whole::{PHYSICAL_LOSS, named_body};
+use super::whole::{PHYSICAL_LOSS, com_distance, named_within};
 
 /// A link's fitted mass beyond this factor of its modelled mass (either
 /// way) is not taken as an inertial error of that link.
@@ -127,10 +127,11 @@ pub(super) fn physical(
 }
 
 /// Whether a whole-body fit names a plausible body of its link: reaching
-/// the nearest physical body gives up at most [`PHYSICAL_LOSS`] of the
-/// torque the fit explains, its mass stays within [`MASS_FACTOR`] of the
-/// model's, its centre of mass within the link's extent and the arm's
-/// size, and its mass within the link's span on average.
+/// the nearest physical body with its centre of mass within the link's
+/// extent gives up at most [`PHYSICAL_LOSS`] of the torque the fit
+/// explains, its mass stays within [`MASS_FACTOR`] of the model's, and its
+/// mass lies within the link's span on average. A fit whose nearest body
+/// lies beyond the arm's size is refused.
 fn plausible_body(
     candidate: &Candidate,
     values: &[f64],
@@ -142,14 +143,36 @@ fn plausible_body(
         return Ok(());
     };
     let modelled = candidate.modelled[0];
-    let (body, lost) = named_body(&candidate.modelled, basis, gram, values);
-    if lost > PHYSICAL_LOSS {
+    let named = named_within(&candidate.modelled, (basis, gram), values, candidate.extent);
+    let (body, lost) = (named.body, named.lost);
+    let free_lost = named.beyond.map_or(lost, |(_, free)| free);
+    if free_lost > PHYSICAL_LOSS {
         return Err(format!(
             "{at}: the data fit a change of the link's ten inertial parameters that no physical \
              body makes (the nearest body gives up {:.0}% of the torque it explains): the trace \
              of another effect; not named (it {cut})",
-            100.0 * lost
+            100.0 * free_lost
         ));
+    }
+    if let Some((distance, _)) = named.beyond {
+        let bound = if distance > reach {
+            Some(format!("the arm's size is {reach:.2} m"))
+        } else if lost > PHYSICAL_LOSS {
+            Some(format!(
+                "beyond the link's extent, {:.2} m, and the nearest body within it gives up \
+                 {:.0}% of the torque the fit explains",
+                candidate.extent,
+                100.0 * lost
+            ))
+        } else {
+            None
+        };
+        if let Some(bound) = bound {
+            return Err(format!(
+                "{at}: the data fit a body whose centre of mass lies {distance:.2} m from the link \
+                 origin ({bound}): not a physical correction; not named (it {cut})"
+            ));
+        }
     }
     let mass = body[0];
     if modelled > 0.0 && !(modelled / MASS_FACTOR..=modelled * MASS_FACTOR).contains(&mass) {
@@ -159,8 +182,8 @@ fn plausible_body(
              trace of another effect; not named (it {cut})"
         ));
     }
-    let distance = Vector3::new(body[1], body[2], body[3]).norm() / mass;
-    within(candidate, distance, reach).map_err(|bound| {
+    let distance = com_distance(&body);
+    within(candidate, distance * (1.0 - 1e-6), reach).map_err(|bound| {
         format!(
             "{at}: the data fit a body whose centre of mass lies {distance:.2} m from the link \
              origin ({bound}): not a physical correction; not named (it {cut})"

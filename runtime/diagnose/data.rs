@@ -7,7 +7,7 @@ use super::candidate::{Candidate, Columns, Shape, candidates};
 use super::produce::{Inputs, Keep, RAW_BUDGET_BYTES, produce};
 use super::rows::{MOVING, Rows, Tilted};
 use super::settings::Settings;
-use super::stacked::{Layout, Link, Stacked};
+use super::stacked::{EXTENT_MARGIN, Layout, Link, Stacked};
 use crate::dynamics::Dynamics;
 use crate::oracle::Model;
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
@@ -32,10 +32,6 @@ pub(super) fn reject_duplicates(trajectories: &[Trajectory]) -> anyhow::Result<(
     }
     Ok(())
 }
-
-/// Beyond the farthest of its child joints and its modelled centre of mass
-/// by this much (m), a link's centre of mass is not plausible.
-pub const EXTENT_MARGIN: f64 = 0.05;
 
 /// The model's moving links. A link's extent is the farthest of its child
 /// joints' origins and its modelled COM, plus [`EXTENT_MARGIN`]: a fitted

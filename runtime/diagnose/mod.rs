@@ -100,6 +100,7 @@ mod identify;
 mod kind;
 mod modelled;
 mod moments;
+mod nearest;
 pub mod plots;
 mod produce;
 mod report;

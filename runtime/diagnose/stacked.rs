@@ -33,6 +33,10 @@ impl Stacked {
     }
 }
 
+/// Beyond the farthest of its child joints and its modelled centre of mass
+/// by this much (m), a link's centre of mass is not plausible.
+pub const EXTENT_MARGIN: f64 = 0.05;
+
 /// A moving link of the model: its name, standard parameters and extent.
 pub(crate) struct Link {
     pub(super) name: String,

@@ -7,10 +7,12 @@
 //! the directions the data do not see kept as close to the model as a
 //! physical body allows.
 
-use nalgebra::{DMatrix, DVector, Matrix4};
+use nalgebra::{DMatrix, DVector};
 use serde_json::{Map, Value, json};
 
+use super::nearest::nearest_body;
 use super::shape::physically_consistent;
+use super::stacked::EXTENT_MARGIN;
 
 /// Relative eigenvalue of the link's unit-diagonal Gram matrix below which
 /// a combination of its parameters is not fitted: its column is under 1%
@@ -108,22 +110,69 @@ pub(super) fn combinations(
 
 /// The body a whole-body fit names: the physical body nearest to the
 /// fitted one (the model's parameters plus `basis * combinations`) in the
-/// metric of the data (`gram`), and the share of the fitted change's
-/// torques that reaching it gives up (0 when the fit is physical).
+/// metric of the data (`gram`) with its centre of mass within `radius` of
+/// the link origin (infinite: anywhere), and the share of the fitted
+/// change's torques that reaching it gives up (0 when the fit is such a
+/// body).
 pub(super) fn named_body(
     modelled: &[f64; 10],
-    basis: &DMatrix<f64>,
-    gram: &DMatrix<f64>,
+    (basis, gram): (&DMatrix<f64>, &DMatrix<f64>),
     combinations: &[f64],
+    radius: f64,
 ) -> ([f64; 10], f64) {
     let change = basis * DVector::from_column_slice(combinations);
     let fitted: [f64; 10] = std::array::from_fn(|i| modelled[i] + change[i]);
-    let body = nearest_body(&fitted, modelled, gram);
+    let body = nearest_body(&fitted, modelled, gram, radius);
     let moved = DVector::from_fn(10, |i, _| body[i] - fitted[i]);
     let signal = change.dot(&(gram * &change));
     let lost = moved.dot(&(gram * &moved));
     let share = if signal > 0.0 { lost / signal } else { 0.0 };
     (body, share)
+}
+
+/// The body a whole-body fit names on a link whose centre of mass is
+/// plausible within `extent` of its origin: the nearest physical body, or,
+/// where that body's COM lies beyond the extent, the nearest one within it.
+pub(super) struct Named {
+    pub body: [f64; 10],
+    /// The share of the fitted change's torques that reaching `body` gives up.
+    pub lost: f64,
+    /// Where the nearest physical body had its COM beyond the extent: that
+    /// distance (m) and the share reaching it gave up.
+    pub beyond: Option<(f64, f64)>,
+}
+
+/// See [`Named`].
+pub(super) fn named_within(
+    modelled: &[f64; 10],
+    (basis, gram): (&DMatrix<f64>, &DMatrix<f64>),
+    combinations: &[f64],
+    extent: f64,
+) -> Named {
+    let (body, lost) = named_body(modelled, (basis, gram), combinations, f64::INFINITY);
+    let distance = com_distance(&body);
+    if distance <= extent {
+        return Named {
+            body,
+            lost,
+            beyond: None,
+        };
+    }
+    let (within, lost_within) = named_body(modelled, (basis, gram), combinations, extent);
+    Named {
+        body: within,
+        lost: lost_within,
+        beyond: Some((distance, lost)),
+    }
+}
+
+/// The distance of a body's centre of mass from its link origin (m).
+pub(super) fn com_distance(p: &[f64; 10]) -> f64 {
+    if p[0] > 0.0 {
+        (p[1] * p[1] + p[2] * p[2] + p[3] * p[3]).sqrt() / p[0]
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// A body's mass, centre of mass and inertia about it ([ixx, ixy, ixz,
@@ -141,20 +190,21 @@ pub fn about_com(p: &[f64; 10]) -> (f64, [f64; 3], [f64; 6]) {
 }
 
 /// The report's parameters of a named whole-body error (`label`, the
-/// model's `modelled` link; `values`: each
+/// model's `modelled` link and its `extent`; `values`: each
 /// combination's value and 95% half-width): the named body's mass, COM and
 /// inertia about the COM beside the model's, the combinations with their
 /// intervals, and which standard parameters the data determine; a note
 /// says that the rest are the model's.
 pub(super) fn describe(
-    (label, modelled): (&str, &[f64; 10]),
+    (label, modelled, extent): (&str, &[f64; 10], f64),
     (basis, gram): (&DMatrix<f64>, &DMatrix<f64>),
     values: &[(f64, f64)],
     (parameters, ci95): (&mut Map<String, Value>, &mut Map<String, Value>),
     notes: &mut Vec<String>,
 ) {
     let fitted: Vec<f64> = values.iter().map(|v| v.0).collect();
-    let (body, lost) = named_body(modelled, basis, gram, &fitted);
+    let named = named_within(modelled, (basis, gram), &fitted, extent);
+    let (body, lost) = (named.body, named.lost);
     let (mass, com, inertia) = about_com(&body);
     let (nominal_mass, nominal_com, nominal_inertia) = about_com(modelled);
     let known = determined(gram);
@@ -201,179 +251,14 @@ pub(super) fn describe(
             String::new()
         }
     ));
-}
-
-/// Natural scales of the ten parameters for a body of mass `m` and size
-/// `l`: kg, kg m, kg m^2.
-fn scales(m: f64, l: f64) -> [f64; 10] {
-    std::array::from_fn(|i| match i {
-        0 => m,
-        1..=3 => m * l,
-        _ => m * l * l,
-    })
-}
-
-/// Minimizes (p - fitted)^T G (p - fitted) + eps |(p - modelled) / s|^2
-/// over physical bodies p, parametrized by the log-Cholesky factor of the
-/// pseudo-inertia (Rucker and Wensing 2022: every parameter vector is a
-/// physical body and every body with a definite pseudo-inertia is
-/// reached), by damped Gauss-Newton steps. The small second term keeps
-/// what the data do not see at the model's values where the body allows.
-fn nearest_body(fitted: &[f64; 10], modelled: &[f64; 10], gram: &DMatrix<f64>) -> [f64; 10] {
-    let mass = modelled[0].abs().max(fitted[0].abs()).max(1e-3);
-    let size = (modelled[1].powi(2) + modelled[2].powi(2) + modelled[3].powi(2)).sqrt() / mass;
-    let s = scales(mass, size.max(0.05));
-    let curvature: f64 = (0..10).map(|i| gram[(i, i)] * s[i] * s[i]).sum::<f64>() / 10.0;
-    let eps = 1e-8 * curvature.max(f64::MIN_POSITIVE);
-    let weight = DMatrix::from_fn(10, 10, |i, j| {
-        gram[(i, j)] + if i == j { eps / (s[i] * s[i]) } else { 0.0 }
-    });
-    let pull = gram * DVector::from_column_slice(fitted)
-        + DVector::from_fn(10, |i, _| eps * modelled[i] / (s[i] * s[i]));
-    let objective = |p: &DVector<f64>| p.dot(&(&weight * p)) - 2.0 * p.dot(&pull);
-    let mut theta = log_cholesky(&start(fitted, modelled));
-    let (mut p, _) = parameters(&theta);
-    let mut value = objective(&p);
-    let mut damping = 1e-3;
-    for _ in 0..200 {
-        let (_, jacobian) = parameters(&theta);
-        let gradient = jacobian.transpose() * (&weight * &p - &pull);
-        let hessian = jacobian.transpose() * &weight * &jacobian;
-        let mut improved = false;
-        while damping < 1e12 {
-            let mut damped = hessian.clone();
-            for i in 0..10 {
-                damped[(i, i)] += damping * hessian[(i, i)].max(1e-300);
-            }
-            let Some(step) = damped.cholesky().map(|c| c.solve(&gradient)) else {
-                damping *= 10.0;
-                continue;
-            };
-            let trial = &theta - &step;
-            let (q, _) = parameters(&trial);
-            let v = objective(&q);
-            if v.is_finite() && v < value {
-                let small = (value - v) <= 1e-14 * value.abs().max(f64::MIN_POSITIVE);
-                (theta, p, value, improved) = (trial, q, v, !small);
-                damping = (damping / 10.0).max(1e-12);
-                break;
-            }
-            damping *= 10.0;
-        }
-        if !improved {
-            break;
-        }
+    if let Some((distance, _)) = named.beyond {
+        notes.push(format!(
+            "{label}: the nearest physical body to the fit has its centre of mass {distance:.3} m \
+             from the link origin, beyond the link's extent ({extent:.3} m: its farthest child \
+             joint or modelled COM plus {EXTENT_MARGIN} m); named: the nearest body with its \
+             COM within it"
+        ));
     }
-    std::array::from_fn(|i| p[i])
-}
-
-/// A start with a definite pseudo-inertia: the fitted body's, its
-/// eigenvalues raised to a small floor (the model's scale) where needed.
-fn start(fitted: &[f64; 10], modelled: &[f64; 10]) -> Matrix4<f64> {
-    let pseudo = pseudo_inertia(fitted);
-    let reference = pseudo_inertia(modelled)
-        .norm()
-        .max(pseudo.norm())
-        .max(1e-12);
-    let floor = 1e-6 * reference;
-    let eigen = pseudo.symmetric_eigen();
-    let raised = eigen.eigenvalues.map(|l| l.max(floor));
-    eigen.eigenvectors * Matrix4::from_diagonal(&raised) * eigen.eigenvectors.transpose()
-}
-
-/// [[tr(I)/2 E - I, h], [h^T, m]] of standard parameters p.
-pub(super) fn pseudo_inertia(p: &[f64; 10]) -> Matrix4<f64> {
-    let [m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz] = *p;
-    let half = 0.5 * (ixx + iyy + izz);
-    Matrix4::new(
-        half - ixx,
-        -ixy,
-        -ixz,
-        hx,
-        -ixy,
-        half - iyy,
-        -iyz,
-        hy,
-        -ixz,
-        -iyz,
-        half - izz,
-        hz,
-        hx,
-        hy,
-        hz,
-        m,
-    )
-}
-
-/// Standard parameters of a pseudo-inertia (the inverse of
-/// [`pseudo_inertia`], linear).
-fn from_pseudo(j: &Matrix4<f64>) -> DVector<f64> {
-    let trace = j[(0, 0)] + j[(1, 1)] + j[(2, 2)];
-    DVector::from_vec(vec![
-        j[(3, 3)],
-        j[(0, 3)],
-        j[(1, 3)],
-        j[(2, 3)],
-        trace - j[(0, 0)],
-        -j[(0, 1)],
-        trace - j[(1, 1)],
-        -j[(0, 2)],
-        -j[(1, 2)],
-        trace - j[(2, 2)],
-    ])
-}
-
-/// The (row, column) of each log-Cholesky parameter in the upper-triangular
-/// factor U (J = U U^T): the four diagonal entries (as logarithms), then
-/// the six above it.
-const ENTRIES: [(usize, usize); 10] = [
-    (0, 0),
-    (1, 1),
-    (2, 2),
-    (3, 3),
-    (0, 1),
-    (0, 2),
-    (0, 3),
-    (1, 2),
-    (1, 3),
-    (2, 3),
-];
-
-/// The log-Cholesky parameters of a definite pseudo-inertia: the Cholesky
-/// factor of the index-reversed matrix, reversed, is upper triangular.
-fn log_cholesky(j: &Matrix4<f64>) -> DVector<f64> {
-    let reversed = Matrix4::from_fn(|a, b| j[(3 - a, 3 - b)]);
-    let l = reversed
-        .cholesky()
-        .map(|c| c.l())
-        .unwrap_or_else(|| Matrix4::identity() * j.norm().max(1e-12).sqrt());
-    let u = Matrix4::from_fn(|a, b| l[(3 - a, 3 - b)]);
-    DVector::from_fn(10, |k, _| {
-        let (a, b) = ENTRIES[k];
-        if a == b {
-            u[(a, a)].max(1e-300).ln()
-        } else {
-            u[(a, b)]
-        }
-    })
-}
-
-/// Standard parameters of log-Cholesky parameters theta, and their
-/// Jacobian (10 x 10).
-fn parameters(theta: &DVector<f64>) -> (DVector<f64>, DMatrix<f64>) {
-    let mut u = Matrix4::zeros();
-    for (k, &(a, b)) in ENTRIES.iter().enumerate() {
-        u[(a, b)] = if a == b { theta[k].exp() } else { theta[k] };
-    }
-    let p = from_pseudo(&(u * u.transpose()));
-    let mut jacobian = DMatrix::zeros(10, 10);
-    for (k, &(a, b)) in ENTRIES.iter().enumerate() {
-        let mut du = Matrix4::zeros();
-        du[(a, b)] = if a == b { u[(a, a)] } else { 1.0 };
-        let dj = du * u.transpose() + u * du.transpose();
-        jacobian.set_column(k, &from_pseudo(&dj));
-    }
-    (p, jacobian)
 }
 
 /// Which of the ten standard parameters the data determine: those whose
@@ -420,24 +305,6 @@ mod tests {
         p
     }
 
-    #[test]
-    fn log_cholesky_parameters_round_trip_and_their_jacobian_is_exact() {
-        let body = rod(1.3, [0.1, -0.05, 0.2], [0.02, 0.03, 0.015]);
-        let theta = log_cholesky(&pseudo_inertia(&body));
-        let (p, jacobian) = parameters(&theta);
-        for i in 0..10 {
-            assert!((p[i] - body[i]).abs() < 1e-12, "{p} {body:?}");
-        }
-        for k in 0..10 {
-            let h = 1e-6;
-            let (mut up, mut down) = (theta.clone(), theta.clone());
-            up[k] += h;
-            down[k] -= h;
-            let difference = (parameters(&up).0 - parameters(&down).0) / (2.0 * h);
-            assert!((difference - jacobian.column(k)).amax() < 1e-7, "{k}");
-        }
-    }
-
     /// Data that see every parameter: a physical fit is kept as it is; an
     /// impossible one (principal moments 1, 1, 3) is moved to a body.
     #[test]
@@ -447,14 +314,14 @@ mod tests {
         let fitted = rod(1.2, [0.0, 0.0, 0.12], [0.012, 0.012, 0.012]);
         let basis = DMatrix::identity(10, 10);
         let change: Vec<f64> = (0..10).map(|i| fitted[i] - modelled[i]).collect();
-        let (body, lost) = named_body(&modelled, &basis, &gram, &change);
+        let (body, lost) = named_body(&modelled, (&basis, &gram), &change, f64::INFINITY);
         assert!(lost < 1e-10, "{lost}");
         for i in 0..10 {
             assert!((body[i] - fitted[i]).abs() < 1e-6, "{body:?}");
         }
         let impossible = rod(1.0, [0.0; 3], [1.0, 1.0, 3.0]);
         let change: Vec<f64> = (0..10).map(|i| impossible[i] - modelled[i]).collect();
-        let (body, lost) = named_body(&modelled, &basis, &gram, &change);
+        let (body, lost) = named_body(&modelled, (&basis, &gram), &change, f64::INFINITY);
         assert_eq!(physically_consistent(&body), Some(true), "{body:?}");
         assert!(lost > 0.0 && lost < 1.0, "{lost}");
     }
