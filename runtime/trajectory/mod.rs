@@ -6,8 +6,8 @@
 //! stack directly into MLP datasets (rows = samples).
 //!
 //! CSV contract: a header row naming `t,q1..qN,qd1..qdN,tau1..tauN` and
-//! optionally `qdd1..qddN`, in any order. Errors report the file line, with the
-//! header on line 1 (so the first data row is line 2).
+//! optionally `qdd1..qddN`, in any order. Errors report the file line: the
+//! header's own (line 1 unless blank lines come first) or a data row's.
 
 use std::collections::{HashMap, HashSet};
 use std::io::{self, Write};
@@ -57,15 +57,20 @@ pub enum TrajectoryError {
     #[error("{}: empty file, expected a header row on line 1", .path.display())]
     MissingHeader { path: PathBuf },
     /// A required contract column is absent.
-    #[error("{}: missing column '{column}' in the header (line 1)", .path.display())]
-    MissingColumn { path: PathBuf, column: String },
+    #[error("{}: missing column '{column}' in the header (line {line})", .path.display())]
+    MissingColumn {
+        path: PathBuf,
+        line: u64,
+        column: String,
+    },
     /// A header names a column outside the contract.
     #[error(
-        "{}: unexpected column '{column}' in the header (line 1); expected {expected}; {advice}",
+        "{}: unexpected column '{column}' in the header (line {line}); expected {expected}; {advice}",
         .path.display()
     )]
     UnexpectedColumn {
         path: PathBuf,
+        line: u64,
         column: String,
         expected: String,
         /// What to do: rename or ignore the column, or, for a header cell
@@ -73,12 +78,17 @@ pub enum TrajectoryError {
         advice: String,
     },
     /// Two header cells map to the same contract column.
-    #[error("{}: column '{column}' appears twice in the header (line 1)", .path.display())]
-    DuplicateColumn { path: PathBuf, column: String },
+    #[error("{}: column '{column}' appears twice in the header (line {line})", .path.display())]
+    DuplicateColumn {
+        path: PathBuf,
+        line: u64,
+        column: String,
+    },
     /// The file's joint count differs from the caller's.
-    #[error("{}: expected {expected} joints, the header (line 1) has {found}", .path.display())]
+    #[error("{}: expected {expected} joints, the header (line {line}) has {found}", .path.display())]
     WrongDof {
         path: PathBuf,
+        line: u64,
         expected: usize,
         found: usize,
     },

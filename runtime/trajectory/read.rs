@@ -166,14 +166,14 @@ pub(super) struct Layout {
 }
 
 pub(super) fn parse_header(
-    path: &Path,
+    (path, line): (&Path, u64),
     header: &csv::StringRecord,
     opts: &ReadOptions,
     schema: &Schema,
 ) -> Result<Layout, TrajectoryError> {
-    let (time, joints) = classify_columns(path, header, opts, schema)?;
+    let (time, joints) = classify_columns((path, line), header, opts, schema)?;
     if schema.time == Presence::Required && time.is_none() {
-        return Err(missing(path, "t".to_owned()));
+        return Err(missing((path, line), "t".to_owned()));
     }
     let found = joints.keys().map(|&(_, j)| j + 1).max().unwrap_or(0);
     if let Some(expected) = opts.dof
@@ -182,6 +182,7 @@ pub(super) fn parse_header(
     {
         return Err(TrajectoryError::WrongDof {
             path: path.to_owned(),
+            line,
             expected,
             found,
         });
@@ -190,7 +191,7 @@ pub(super) fn parse_header(
     let dof = found.max(1);
     let mut channels: [Option<Vec<usize>>; 4] = Default::default();
     for ch in CHANNELS {
-        channels[ch.index()] = channel_columns(path, &joints, ch, dof, schema)?;
+        channels[ch.index()] = channel_columns((path, line), &joints, ch, dof, schema)?;
     }
     Ok(Layout {
         width: header.len(),
@@ -202,7 +203,7 @@ pub(super) fn parse_header(
 }
 
 pub(super) fn classify_columns(
-    path: &Path,
+    (path, line): (&Path, u64),
     header: &csv::StringRecord,
     opts: &ReadOptions,
     schema: &Schema,
@@ -217,6 +218,7 @@ pub(super) fn classify_columns(
         let name = opts.renames.get(raw).map_or(raw, String::as_str);
         let unexpected = || TrajectoryError::UnexpectedColumn {
             path: path.to_owned(),
+            line,
             column: raw.to_owned(),
             expected: schema.expected.to_owned(),
             advice: unexpected_advice(raw),
@@ -224,6 +226,7 @@ pub(super) fn classify_columns(
         if !seen.insert(name.to_owned()) {
             return Err(TrajectoryError::DuplicateColumn {
                 path: path.to_owned(),
+                line,
                 column: name.to_owned(),
             });
         }
@@ -255,9 +258,10 @@ fn unexpected_advice(cell: &str) -> String {
     }
 }
 
-pub(super) fn missing(path: &Path, column: String) -> TrajectoryError {
+pub(super) fn missing((path, line): (&Path, u64), column: String) -> TrajectoryError {
     TrajectoryError::MissingColumn {
         path: path.to_owned(),
+        line,
         column,
     }
 }
@@ -265,7 +269,7 @@ pub(super) fn missing(path: &Path, column: String) -> TrajectoryError {
 /// Resolves a channel's columns: a required channel needs every joint, an
 /// optional one needs all or none.
 pub(super) fn channel_columns(
-    path: &Path,
+    (path, line): (&Path, u64),
     joints: &HashMap<(Channel, usize), usize>,
     ch: Channel,
     dof: usize,
@@ -281,7 +285,7 @@ pub(super) fn channel_columns(
             joints
                 .get(&(ch, j))
                 .copied()
-                .ok_or_else(|| missing(path, format!("{}{}", ch.prefix(), j + 1)))
+                .ok_or_else(|| missing((path, line), format!("{}{}", ch.prefix(), j + 1)))
         })
         .collect::<Result<Vec<_>, _>>()
         .map(Some)
@@ -329,7 +333,9 @@ pub(super) fn read_table(
             path: path.to_owned(),
         });
     }
-    let layout = parse_header(path, &header, opts, schema)?;
+    // The line the header ends on (csv skips blank lines before it).
+    let header_line = reader.position().line().saturating_sub(1).max(1);
+    let layout = parse_header((path, header_line), &header, opts, schema)?;
     let used = used_columns(&layout);
     let mut columns = vec![Vec::new(); layout.width];
     let mut lines = Vec::new();

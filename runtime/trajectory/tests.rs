@@ -132,6 +132,35 @@ fn reports_header_problems() {
     );
     let msg = read_err("empty", "", &opts);
     assert!(msg.contains("empty file"), "{msg}");
+    assert!(
+        read_err("missing-1", "t,q1,q2,qd1,tau1,tau2\n0,1,1,1,1,1\n", &opts).contains("(line 1)")
+    );
+}
+
+/// Blank lines before the header: every header error names the header's
+/// own line, and a data row's error its line.
+#[test]
+fn header_errors_name_the_line_after_blank_lines() {
+    let opts = ReadOptions::default();
+    let header = |names: &str| format!("\n\r\n{names}\n0,1,1,1,1\n0.01,1,1,1,1\n");
+    let msg = read_err("blank-extra", &header("t,q1,qd1,tau1,temp"), &opts);
+    assert!(msg.contains("(line 3)"), "{msg}");
+    let msg = read_err("blank-missing", &header("t,q1,q2,qd1,tau1"), &opts);
+    assert!(
+        msg.contains("missing column") && msg.contains("(line 3)"),
+        "{msg}"
+    );
+    let msg = read_err("blank-dup", &header("t,q1,q1,qd1,tau1"), &opts);
+    assert!(msg.contains("twice") && msg.contains("(line 3)"), "{msg}");
+    let three = ReadOptions {
+        dof: Some(3),
+        ..ReadOptions::default()
+    };
+    let msg = read_err("blank-dof", &header("t,q1,qd1,tau1,tau1x"), &three);
+    assert!(msg.contains("(line 3)"), "{msg}");
+    let body = "\n\nt,q1,qd1,tau1\n0,1,1,1\n0.01,1,x,1\n";
+    let msg = read_err("blank-cell", body, &opts);
+    assert!(msg.contains("line 5"), "{msg}");
 }
 
 #[test]
