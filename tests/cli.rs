@@ -376,3 +376,70 @@ fn evaluate_refuses_a_recording_in_degrees() {
     assert!(anyway.status.success());
     assert!(String::from_utf8_lossy(&anyway.stderr).contains("evaluated anyway"));
 }
+
+/// `evaluate --preprocessed` compares a file that already carries filtered
+/// states as it is: the model on its rows against its torque, every row.
+/// Without the flag such a file is filtered again, and a note says so.
+#[test]
+fn evaluate_compares_preprocessed_files_as_they_are() {
+    let model = sdnn::model("kinova_gen3_lite_3dof").unwrap();
+    let shift = [0.1, -0.2, 0.3];
+    let mut body = String::from("t,q1,q2,q3,qd1,qd2,qd3,qdd1,qdd2,qdd3,tau1,tau2,tau3\n");
+    for k in 0..8 {
+        let s = k as f64 * 0.1;
+        let (q, qd, qdd) = ([s, 0.5 - s, 0.2], [0.3, -0.1, s], [0.0, 0.2, -0.4]);
+        let tau = model.tau(&q, &qd, &qdd).unwrap();
+        let row: Vec<String> = [s]
+            .iter()
+            .chain(&q)
+            .chain(&qd)
+            .chain(&qdd)
+            .copied()
+            .chain((0..3).map(|j| tau[j] + shift[j]))
+            .map(|v| format!("{v:?}"))
+            .collect();
+        body.push_str(&(row.join(",") + "\n"));
+    }
+    let dir = Dir::new();
+    let file = dir.write("pre.csv", &body);
+    let file = file.to_str().unwrap();
+    let report = sdnn_json(&[
+        "evaluate",
+        "--model",
+        "kinova_gen3_lite_3dof",
+        "--data",
+        file,
+        "--preprocessed",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(report["samples"], 8);
+    for (j, s) in shift.iter().enumerate() {
+        let mse = report["mse"][j].as_f64().unwrap();
+        assert!((mse - s * s).abs() < 1e-12, "{report}");
+        assert_eq!(report["mse_torque_as_logged"][j], report["mse"][j]);
+    }
+    let again = sdnn(&[
+        "evaluate",
+        "--model",
+        "kinova_gen3_lite_3dof",
+        "--data",
+        file,
+    ]);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert!(stderr.contains("pass --preprocessed"), "{stderr}");
+    let raw = dir.write(
+        "raw.csv",
+        "t,q1,q2,q3,qd1,qd2,qd3,tau1,tau2,tau3\n0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,0,0\n",
+    );
+    let refused = sdnn(&[
+        "evaluate",
+        "--model",
+        "kinova_gen3_lite_3dof",
+        "--data",
+        raw.to_str().unwrap(),
+        "--preprocessed",
+    ]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("needs qdd1..qddN"));
+}

@@ -16,6 +16,11 @@ pub struct EvaluateArgs {
     /// Evaluate this trained network instead of the analytical model.
     #[arg(long)]
     pub nn: Option<PathBuf>,
+    /// The files already carry filtered qd and qdd (written by `sdnn
+    /// preprocess` or `sdnn synth`): compared as they are, not filtered
+    /// again.
+    #[arg(long, conflicts_with_all = ["preset", "cutoff", "rate", "downsample", "filter", "window", "filter_torque"])]
+    pub preprocessed: bool,
     #[command(flatten)]
     pub input: InputArgs,
     #[command(flatten)]
@@ -36,20 +41,15 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     if let (Some(n), Some(path)) = (&network, &args.nn) {
         check_network(n, path, model)?;
     }
-    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
-    gate(args, model, &recordings)?;
-    let pipeline = args.filter.resolve(&recordings)?;
-    let mut compared = Vec::new();
-    for (raw, path) in recordings.iter().zip(&args.data) {
-        compared.push(
-            pipeline
-                .compare(raw, |traj| match &network {
-                    Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
-                    None => model_torques(model, traj),
-                })
-                .with_context(|| path.display().to_string())?,
-        );
-    }
+    let predict = |traj: &Trajectory| match &network {
+        Some(n) => Ok(n.predict(&Dataset::from_trajectory(traj, 0)?.inputs)?),
+        None => model_torques(model, traj),
+    };
+    let (compared, (preprocessing, summary)) = if args.preprocessed {
+        compare_as_given(args, model, predict)?
+    } else {
+        compare_filtered(args, model, predict)?
+    };
     let stacked = |f: fn(&Compared) -> &DMatrix<f64>| {
         study::stack(compared.iter().map(|c| f(c).clone()).collect())
     };
@@ -65,16 +65,85 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
         Format::Json => crate::output::print_line(
             &serde_json::json!({
                 "model": name, "samples": m.nrows(), "mse": mse, "mse_mean": mean,
-                "mse_torque_as_logged": mse_as_logged, "preprocessing": pipeline,
+                "mse_torque_as_logged": mse_as_logged, "preprocessing": preprocessing,
             })
             .to_string(),
         )?,
         Format::Text => {
-            let text = text_report(model, &name, m.nrows(), &pipeline, &mse, &mse_as_logged);
+            let text = text_report(model, &name, m.nrows(), &summary, &mse, &mse_as_logged);
             crate::output::print(&text)?;
         }
     }
     Ok(())
+}
+
+/// How the recordings were preprocessed: as the report's JSON and as its
+/// one line of text.
+type Preprocessing = (serde_json::Value, String);
+
+/// Raw recordings through the resolved pipeline (see `Pipeline::compare`),
+/// after the sanity gate.
+fn compare_filtered(
+    args: &EvaluateArgs,
+    model: &dyn Dynamics,
+    predict: impl Fn(&Trajectory) -> Result<DMatrix<f64>>,
+) -> Result<(Vec<Compared>, Preprocessing)> {
+    let recordings = args.input.read_all(&args.data, Some(model.joint_names()))?;
+    gate(args, model, &recordings)?;
+    for (raw, path) in recordings.iter().zip(&args.data) {
+        if raw.qdd().is_some() {
+            crate::say!(
+                "note: {} carries qdd columns (a preprocessed file?): filtered again as a raw \
+                 recording; pass --preprocessed to compare it as it is",
+                path.display()
+            );
+        }
+    }
+    let pipeline = args.filter.resolve(&recordings)?;
+    let compared = recordings
+        .iter()
+        .zip(&args.data)
+        .map(|(raw, path)| {
+            pipeline
+                .compare(raw, &predict)
+                .with_context(|| path.display().to_string())
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((
+        compared,
+        (serde_json::to_value(&pipeline)?, pipeline.summary()),
+    ))
+}
+
+/// Files that already carry filtered qd and qdd (`--preprocessed`): the
+/// prediction on their states against their torque, every sample.
+fn compare_as_given(
+    args: &EvaluateArgs,
+    model: &dyn Dynamics,
+    predict: impl Fn(&Trajectory) -> Result<DMatrix<f64>>,
+) -> Result<(Vec<Compared>, Preprocessing)> {
+    let recordings = args
+        .data
+        .iter()
+        .map(|path| load_preprocessed(path, Some(model.joint_names()), &args.input))
+        .collect::<Result<Vec<_>>>()?;
+    crate::inputs::reject_repeated(&args.data, &recordings)?;
+    gate(args, model, &recordings)?;
+    let compared = recordings
+        .iter()
+        .zip(&args.data)
+        .map(|(traj, path)| {
+            let predicted = predict(traj).with_context(|| path.display().to_string())?;
+            Ok(Compared {
+                measured: traj.tau().clone(),
+                predicted: predicted.clone(),
+                measured_as_logged: traj.tau().clone(),
+                predicted_unfiltered: predicted,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let said = "preprocessed files (--preprocessed): compared as they are, not filtered again";
+    Ok((compared, (serde_json::Value::from(said), said.to_string())))
 }
 
 /// A network must map the model's states to its torques.
@@ -149,13 +218,13 @@ fn text_report(
     model: &dyn Dynamics,
     name: &str,
     samples: usize,
-    pipeline: &crate::preprocess::Pipeline,
+    preprocessing: &str,
     mse: &[f64],
     mse_as_logged: &[f64],
 ) -> String {
     use std::fmt::Write as _;
     let mut text = format!("model {name}: {samples} samples\n");
-    let _ = writeln!(text, "{}", pipeline.summary());
+    let _ = writeln!(text, "{preprocessing}");
     let levers = crate::dynamics::joint_levers(model);
     let unit = |j: usize| match levers.get(j) {
         Some(&l) if l != 1.0 => "N^2",
