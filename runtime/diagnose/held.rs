@@ -10,6 +10,7 @@
 use nalgebra::DVector;
 
 use super::candidate::{Candidate, Shape, label, width};
+use super::fit::Fit;
 use super::heldout::with_and_without;
 use super::kind::Kind;
 use super::moments::Moments;
@@ -56,7 +57,9 @@ pub(super) fn drop_unheld(
     mut bias: impl FnMut(&[usize]) -> DVector<f64>,
 ) {
     let mut suspects: Option<Vec<usize>> = None;
-    while let Some((theta, half)) = half_widths(m, candidates, selected, &bias(selected)) {
+    while let Some((Fit { theta, .. }, half)) =
+        half_widths(m, candidates, selected, &bias(selected))
+    {
         let mut offset = 0;
         let mut failing = Vec::new();
         for (position, &c) in selected.iter().enumerate() {

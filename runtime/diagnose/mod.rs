@@ -92,6 +92,7 @@ mod descent;
 mod diagnosis;
 use crate::digits;
 mod dry;
+mod extent;
 mod fit;
 mod gain;
 mod held;

@@ -3,7 +3,7 @@
 //! semi-definite, and the centre of mass within the link), in the data's
 //! metric.
 
-use nalgebra::{DMatrix, DVector, Matrix4};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Vector3};
 
 /// Natural scales of the ten parameters for a body of mass `m` and size
 /// `l`: kg, kg m, kg m^2.
@@ -249,48 +249,42 @@ fn parameters(theta: &DVector<f64>) -> (DVector<f64>, DMatrix<f64>) {
 }
 
 /// The first moment nearest to `fitted` (kg m) within `radius` (kg m, the
-/// link's extent times its mass) in the metric of the fit's own
-/// uncertainty: it minimizes sum(((h - fitted) / spread)^2) subject to
-/// |h| <= radius, h_i = fitted_i / (1 + lambda spread_i^2) with lambda
-/// found by bisection, so the components the data determine least move
-/// most. Within the radius the fit is kept as it is.
-pub(super) fn moment_within(fitted: [f64; 3], spread: [f64; 3], radius: f64) -> [f64; 3] {
-    let norm = |h: &[f64; 3]| h.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if norm(&fitted) <= radius {
-        return fitted;
+/// link's extent times its mass) in the metric `precision` (3 x 3, the
+/// fit's information about the first moment with the other parameters
+/// refitted): it minimizes (h - fitted)^T P (h - fitted) subject to
+/// |h| <= radius, h = (P + lambda I)^-1 P fitted with lambda found by
+/// bisection (the trust-region subproblem), so it moves most where the
+/// data see least. Within the radius the fit is kept as it is.
+pub(super) fn moment_within(fitted: [f64; 3], precision: &Matrix3<f64>, radius: f64) -> [f64; 3] {
+    let fitted = Vector3::from(fitted);
+    if fitted.norm() <= radius {
+        return fitted.into();
     }
-    let floor = spread
-        .iter()
-        .copied()
-        .fold(0.0, f64::max)
-        .max(f64::MIN_POSITIVE)
-        * 1e-6;
-    let variance = spread.map(|s| s.max(floor).powi(2));
-    let at = |lambda: f64| -> [f64; 3] {
-        std::array::from_fn(|i| fitted[i] / (1.0 + lambda * variance[i]))
+    let pulled = precision * fitted;
+    let at = |lambda: f64| -> Vector3<f64> {
+        (precision + Matrix3::identity() * lambda)
+            .lu()
+            .solve(&pulled)
+            .unwrap_or_else(Vector3::zeros)
     };
-    let (mut low, mut high) = (
-        0.0,
-        1.0 / variance.iter().copied().fold(f64::INFINITY, f64::min),
-    );
-    while norm(&at(high)) > radius {
+    let scale = precision.diagonal().amax().max(f64::MIN_POSITIVE);
+    let (mut low, mut high) = (0.0, scale);
+    while at(high).norm() > radius && high < 1e30 * scale {
         high *= 2.0;
     }
     for _ in 0..200 {
         let middle = 0.5 * (low + high);
-        if norm(&at(middle)) > radius {
+        if at(middle).norm() > radius {
             low = middle;
         } else {
             high = middle;
         }
     }
-    at(high)
+    at(high).into()
 }
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::Vector3;
-
     use super::super::shape::{physically_consistent, point_mass};
     use super::*;
 
@@ -346,12 +340,15 @@ mod tests {
     fn a_first_moment_beyond_the_radius_moves_where_the_data_see_least() {
         let fitted = [-0.24, 8.3, 3.5];
         let radius = 0.68 * 12.93 * 0.95;
-        let kept = moment_within(fitted, [0.27, 2.1, 0.5], radius);
+        let spread = [0.27_f64, 2.1, 0.5];
+        let precision = Matrix3::from_diagonal(&Vector3::from(spread.map(|s| 1.0 / (s * s))));
+        let kept = moment_within(fitted, &precision, radius);
         let norm = kept.iter().map(|x| x * x).sum::<f64>().sqrt();
         assert!((norm - radius).abs() < 1e-9 * radius, "{kept:?}");
         assert!((kept[1] / fitted[1]) < (kept[2] / fitted[2]), "{kept:?}");
+        let identity = Matrix3::identity();
         assert_eq!(
-            moment_within([0.1, 0.2, 0.3], [1.0; 3], 1.0),
+            moment_within([0.1, 0.2, 0.3], &identity, 1.0),
             [0.1, 0.2, 0.3]
         );
     }

@@ -5,13 +5,12 @@ use nalgebra::{DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, label, width};
 use super::diagnosis::{Effect, Regimes, ResidualSamples};
-use super::fit::fit;
+use super::extent::moments_within;
+use super::fit::{Fit, fit};
 use super::heldout::cv_mse_per_joint;
 use super::kind::Kind;
 use super::moments::Moments;
-use super::nearest::moment_within;
 use super::shape::physically_consistent;
-use super::stacked::EXTENT_MARGIN;
 use super::stacked::Stacked;
 use super::uncertainty::{fit_robust, rest_shift, widened};
 
@@ -60,9 +59,10 @@ pub(super) fn describe(
     bias: &DVector<f64>,
     notes: &mut Vec<String>,
 ) -> Vec<Effect> {
-    let Some((theta, half)) = half_widths(m, candidates, selected, bias) else {
+    let Some((fit, half)) = half_widths(m, candidates, selected, bias) else {
         return Vec::new();
     };
+    let theta = moments_within(candidates, selected, &fit.information, fit.theta, notes);
     let removals = heldout_removals(m, candidates, selected);
     let mut offset = 0;
     let mut effects = Vec::new();
@@ -79,7 +79,7 @@ pub(super) fn describe(
     effects
 }
 
-/// The selected effects' parameters and their 95% half-widths: the
+/// The selected effects' fit and their 95% half-widths: the
 /// sampling error widened by `bias` and the move of [`rest_shift`] (see
 /// [`widened`]).
 pub(super) fn half_widths(
@@ -87,14 +87,14 @@ pub(super) fn half_widths(
     candidates: &[Candidate],
     selected: &[usize],
     bias: &DVector<f64>,
-) -> Option<(DVector<f64>, DVector<f64>)> {
+) -> Option<(Fit, DVector<f64>)> {
     let (fit, se) = fit_robust(m, candidates, selected)?;
     // The move when friction below the at-rest speed is left free adds to
     // the other probes' (docs/diagnosis.md, "How far the intervals hold").
     let rest = rest_shift(m, candidates, selected, &fit);
     let bias = bias.zip_map(&rest, |b, r| b + r.abs());
     let half = widened(&se, &bias);
-    Some((fit.theta, half))
+    Some((fit, half))
 }
 
 /// Per selected effect, in selection order, the held-out MSE it removes
@@ -193,13 +193,11 @@ pub(super) fn effect(
     } = &candidate.shape
     {
         // The first moment is what the data determine; its components are
-        // held to the COM resolution at the modelled mass, and the COM it
-        // implies to the link's extent.
-        let kept = first_moment_within(candidate, *base_mass, values, notes);
+        // held to the COM resolution at the modelled mass.
         let mut moment = Vec::new();
         let mut interval = Vec::new();
-        for ((axis, &(h, dh)), kept) in ["x", "y", "z"].iter().zip(values).zip(kept) {
-            moment.push(json!(kept));
+        for (axis, &(h, dh)) in ["x", "y", "z"].iter().zip(values) {
+            moment.push(json!(h));
             interval.push(json!([h - dh, h + dh]));
             if dh > resolution * base_mass {
                 notes.push(format!(
@@ -288,40 +286,6 @@ pub(super) fn effect(
         modelled: Map::new(),
         total: Map::new(),
     }
-}
-
-/// A fitted first moment (`values`: value and 95% half-width per axis)
-/// whose COM at the modelled mass lies beyond the link's extent is moved
-/// to the nearest one within it (see [`moment_within`]), with a note: what
-/// the report and `--apply` carry.
-fn first_moment_within(
-    candidate: &Candidate,
-    base_mass: f64,
-    values: &[(f64, f64)],
-    notes: &mut Vec<String>,
-) -> [f64; 3] {
-    let fitted: [f64; 3] = std::array::from_fn(|a| values[a].0);
-    let spread: [f64; 3] = std::array::from_fn(|a| values[a].1);
-    let kept = moment_within(fitted, spread, candidate.extent * base_mass);
-    if kept != fitted {
-        let distance = fitted.iter().map(|h| h * h).sum::<f64>().sqrt() / base_mass;
-        notes.push(format!(
-            "{}: the fitted first moment [{:.4}, {:.4}, {:.4}] kg m puts the centre of mass \
-             {distance:.3} m from the link origin at the modelled mass, beyond the link's extent \
-             ({:.3} m: its farthest child joint or modelled COM plus {EXTENT_MARGIN} m); \
-             reported and applied: the nearest first moment within it, [{:.4}, {:.4}, {:.4}] kg \
-             m, moved most where the data see least (the intervals are the fit's)",
-            label(candidate),
-            fitted[0],
-            fitted[1],
-            fitted[2],
-            candidate.extent,
-            kept[0],
-            kept[1],
-            kept[2]
-        ));
-    }
-    kept
 }
 
 /// Whether the corrected link (its model plus the fitted change) is a
