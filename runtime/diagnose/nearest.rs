@@ -284,11 +284,12 @@ pub(super) fn moment_within(fitted: [f64; 3], precision: &Matrix3<f64>, radius: 
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::shape::{physically_consistent, point_mass};
     use super::*;
 
-    fn rod(m: f64, c: [f64; 3], moments: [f64; 3]) -> [f64; 10] {
+    /// A body of mass `m` at `c` with principal `moments` about its COM.
+    pub(in super::super) fn rod(m: f64, c: [f64; 3], moments: [f64; 3]) -> [f64; 10] {
         let mut p = point_mass(m, &Vector3::from(c));
         p[4] += moments[0];
         p[6] += moments[1];

@@ -292,18 +292,8 @@ pub(super) fn determined(gram: &DMatrix<f64>) -> Vec<&'static str> {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::Vector3;
-
-    use super::super::shape::point_mass;
+    use super::super::nearest::tests::rod;
     use super::*;
-
-    fn rod(m: f64, c: [f64; 3], moments: [f64; 3]) -> [f64; 10] {
-        let mut p = point_mass(m, &Vector3::from(c));
-        p[4] += moments[0];
-        p[6] += moments[1];
-        p[9] += moments[2];
-        p
-    }
 
     /// Data that see every parameter: a physical fit is kept as it is; an
     /// impossible one (principal moments 1, 1, 3) is moved to a body.
