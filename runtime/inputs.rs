@@ -510,6 +510,21 @@ pub fn load_one(
     Ok((trajectories.remove(0), pipeline))
 }
 
+/// What `--preprocessed` files already had done to them when they were
+/// written, so the flags that would do it again are refused beside it.
+pub const PREPROCESSED_CONFLICTS: [&str; 10] = [
+    "preset",
+    "cutoff",
+    "rate",
+    "downsample",
+    "filter",
+    "window",
+    "filter_torque",
+    "resample",
+    "torque_scales",
+    "torque_delay",
+];
+
 /// A file that already carries filtered qd and qdd (`--preprocessed`).
 pub fn load_preprocessed(path: &Path, joints: Joints, input: &InputArgs) -> Result<Trajectory> {
     let traj = read_csv(path, &input.options(joints.map(<[_]>::len), 2))?;

@@ -442,4 +442,22 @@ fn evaluate_compares_preprocessed_files_as_they_are() {
     ]);
     assert_eq!(refused.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("needs qdd1..qddN"));
+    // What the files had done to them when they were written is not done again.
+    for twice in [
+        ["--torque-scale", "1=1.1"],
+        ["--resample", "50"],
+        ["--cutoff", "3"],
+    ] {
+        let args = [
+            "evaluate",
+            "--data",
+            file,
+            "--preprocessed",
+            twice[0],
+            twice[1],
+        ];
+        let run = sdnn(&args);
+        assert_eq!(run.status.code(), Some(2), "{twice:?}");
+        assert!(String::from_utf8_lossy(&run.stderr).contains("cannot be used with"));
+    }
 }

@@ -18,8 +18,9 @@ pub struct EvaluateArgs {
     pub nn: Option<PathBuf>,
     /// The files already carry filtered qd and qdd (written by `sdnn
     /// preprocess` or `sdnn synth`): compared as they are, not filtered
-    /// again.
-    #[arg(long, conflicts_with_all = ["preset", "cutoff", "rate", "downsample", "filter", "window", "filter_torque"])]
+    /// again (the filter, resampling and torque corrections were applied
+    /// when they were written).
+    #[arg(long, conflicts_with_all = crate::inputs::PREPROCESSED_CONFLICTS)]
     pub preprocessed: bool,
     #[command(flatten)]
     pub input: InputArgs,

@@ -303,8 +303,9 @@ pub struct SynthArgs {
     pub data: Vec<PathBuf>,
     #[arg(long)]
     pub out: PathBuf,
-    /// The files already carry filtered qd and qdd.
-    #[arg(long)]
+    /// The files already carry filtered qd and qdd (the filter, resampling
+    /// and torque corrections were applied when they were written).
+    #[arg(long, conflicts_with_all = crate::inputs::PREPROCESSED_CONFLICTS)]
     pub preprocessed: bool,
     #[command(flatten)]
     pub input: InputArgs,
@@ -345,8 +346,9 @@ pub struct TrainArgs {
     /// Maximum training epochs (1-100000).
     #[arg(long, default_value_t = StudyConfig::default().max_epochs, value_parser = ranges::integer(1, 100_000, "continue from the written network"))]
     pub epochs: usize,
-    /// The files already carry filtered qd and qdd.
-    #[arg(long)]
+    /// The files already carry filtered qd and qdd (the filter, resampling
+    /// and torque corrections were applied when they were written).
+    #[arg(long, conflicts_with_all = crate::inputs::PREPROCESSED_CONFLICTS)]
     pub preprocessed: bool,
     #[command(flatten)]
     pub input: InputArgs,

@@ -56,6 +56,13 @@ pub enum TrajectoryError {
     /// The file has no header row.
     #[error("{}: empty file, expected a header row on line 1", .path.display())]
     MissingHeader { path: PathBuf },
+    /// The first non-empty line holds only blanks (spaces, tabs).
+    #[error(
+        "{}: line {line} holds only blanks where the header row was expected (t, q1..qN, \
+         qd1..qdN, tau1..tauN): delete that line",
+        .path.display()
+    )]
+    BlankHeader { path: PathBuf, line: u64 },
     /// A required contract column is absent.
     #[error("{}: missing column '{column}' in the header (line {line})", .path.display())]
     MissingColumn {

@@ -335,6 +335,12 @@ pub(super) fn read_table(
     }
     // The line the header ends on (csv skips blank lines before it).
     let header_line = reader.position().line().saturating_sub(1).max(1);
+    if header.iter().all(str::is_empty) {
+        return Err(TrajectoryError::BlankHeader {
+            path: path.to_owned(),
+            line: header_line,
+        });
+    }
     let layout = parse_header((path, header_line), &header, opts, schema)?;
     let used = used_columns(&layout);
     let mut columns = vec![Vec::new(); layout.width];

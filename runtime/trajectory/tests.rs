@@ -158,6 +158,8 @@ fn header_errors_name_the_line_after_blank_lines() {
     };
     let msg = read_err("blank-dof", &header("t,q1,qd1,tau1,tau1x"), &three);
     assert!(msg.contains("(line 3)"), "{msg}");
+    let msg = read_err("blank-spaces", "\n   \nt,q1,qd1,tau1\n0,1,1,1\n", &opts);
+    assert!(msg.contains("line 2 holds only blanks"), "{msg}");
     let body = "\n\nt,q1,qd1,tau1\n0,1,1,1\n0.01,1,x,1\n";
     let msg = read_err("blank-cell", body, &opts);
     assert!(msg.contains("line 5"), "{msg}");
