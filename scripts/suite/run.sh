@@ -15,7 +15,7 @@ OUT="${2:-$ROOT/target/suite/out}"
 QUICK="${3:-}"
 VENV="$ROOT/target/suite/venv"
 PY="$VENV/bin/python"
-if [ ! -x "$PY" ]; then
+if ! "$PY" -c "import pinocchio, numpy" 2>/dev/null; then
     python3 -m venv "$VENV"
     "$PY" -m pip install -q pin numpy
 fi
@@ -29,7 +29,7 @@ if [ ! -f "$URDF" ]; then
     git clone -q --depth 1 https://github.com/shamilmamedov/dynamic_calibration \
         "$ROOT/target/ur10e/dynamic_calibration"
 fi
-"$BIN" import-urdf "$URDF" --out "$ROOT/target/suite/ur10e.toml" 2>/dev/null
+"$BIN" import-urdf "$URDF" --out "$ROOT/target/suite/ur10e.toml"
 # 0. the plant must be the tool's model: sdnn tau against Pinocchio rnea, ~1e-9 relative
 (cd "$HERE" && "$PY" verify_plant.py "$BIN" "$ROOT/models/kinova_gen3_lite_3dof.toml" \
     "$ROOT/models/panda.toml" "$ROOT/target/suite/ur10e.toml") | tee "$OUT/plant_check.txt"

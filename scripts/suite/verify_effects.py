@@ -3,10 +3,14 @@ case's plant written as a TOML (payload as a fixed child link, link changes
 in the link, tilt in `gravity`, joint effects in `effects`) and evaluated
 with `sdnn tau` must give the generator's torques (no noise, |qd| > 0.3 so
 tanh(qd/0.01) = sign(qd))."""
-import copy, io, json, os, subprocess, sys, tempfile, tomllib
+import atexit, copy, io, json, os, shutil, subprocess, sys, tempfile, tomllib
 import numpy as np
 import gen
 from plant import Description
+
+# This run's own folder: two runs at once do not share files.
+SCRATCH = tempfile.mkdtemp(prefix="sdnn-suite-")
+atexit.register(shutil.rmtree, SCRATCH, True)
 
 def val(v):
     if isinstance(v, dict):
@@ -71,7 +75,7 @@ def as_toml(robot, case, seed, path):
     return desc, eff
 
 def check(binary, robot, case, seed=1, n=400):
-    path = os.path.join(tempfile.gettempdir(), f"verify_{robot}_{case}.toml")
+    path = os.path.join(SCRATCH, f"verify_{robot}_{case}.toml")
     desc, eff = as_toml(robot, case, seed, path)
     model, _, _ = gen.plant_model(desc, eff)
     rng = np.random.default_rng(5)
