@@ -212,6 +212,9 @@ pub(super) fn classify_columns(
     let mut joints = HashMap::new();
     let mut seen = HashSet::new();
     for (idx, raw) in header.iter().enumerate() {
+        // The reader drops a byte-order mark only at the very start of the
+        // file, not after blank lines.
+        let raw = raw.trim_start_matches('\u{feff}');
         if opts.ignored.iter().any(|i| i == raw) {
             continue;
         }

@@ -160,6 +160,9 @@ fn header_errors_name_the_line_after_blank_lines() {
     assert!(msg.contains("(line 3)"), "{msg}");
     let msg = read_err("blank-spaces", "\n   \nt,q1,qd1,tau1\n0,1,1,1\n", &opts);
     assert!(msg.contains("line 2 holds only blanks"), "{msg}");
+    let bom = "\n\u{feff}t,q1,qd1,tau1\n0,1,1,1\n0.01,1,1,1\n";
+    let read = read_csv(write_file("blank-bom", bom), &opts).unwrap();
+    assert_eq!(read.len(), 2);
     let body = "\n\nt,q1,qd1,tau1\n0,1,1,1\n0.01,1,x,1\n";
     let msg = read_err("blank-cell", body, &opts);
     assert!(msg.contains("line 5"), "{msg}");
