@@ -183,6 +183,7 @@ fn plausible_body(
         ));
     }
     let distance = com_distance(&body);
+    // A body held within the extent reaches it to the penalty's 1e-9.
     within(candidate, distance * (1.0 - 1e-6), reach).map_err(|bound| {
         format!(
             "{at}: the data fit a body whose centre of mass lies {distance:.2} m from the link \
