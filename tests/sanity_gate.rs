@@ -118,6 +118,24 @@ fn exchanged(recording: &Trajectory, a: usize, b: usize) -> Trajectory {
     recording.with_tau(tau).unwrap()
 }
 
+/// Joints `a` and `b` exchanged whole: positions, velocities,
+/// accelerations and torques (a log in another joint order).
+fn reordered(recording: &Trajectory, a: usize, b: usize) -> Trajectory {
+    let swap = |m: &DMatrix<f64>| {
+        let mut m = m.clone();
+        m.swap_columns(a - 1, b - 1);
+        m
+    };
+    Trajectory::new(
+        recording.t().to_vec(),
+        swap(recording.q()),
+        swap(recording.qd()),
+        recording.qdd().map(swap),
+        swap(recording.tau()),
+    )
+    .unwrap()
+}
+
 fn in_degrees(recording: &Trajectory) -> Trajectory {
     let degrees = |m: &DMatrix<f64>| m.map(f64::to_degrees);
     Trajectory::new(
@@ -159,14 +177,15 @@ fn the_arm_refuses_a_flipped_sign_degrees_and_exchanged_joints() {
         "--angles deg",
     );
     for (a, b) in [(1, 2), (2, 3), (1, 3)] {
-        let swapped = exchanged(&clean, a, b);
-        assert_refused(
-            ARM,
-            &swapped,
-            Check::SwappedJoints,
-            &[&[a, b]],
-            "joint order",
-        );
+        for swapped in [exchanged(&clean, a, b), reordered(&clean, a, b)] {
+            assert_refused(
+                ARM,
+                &swapped,
+                Check::SwappedJoints,
+                &[&[a, b]],
+                "joint order",
+            );
+        }
     }
 }
 
@@ -294,6 +313,41 @@ fn the_panda_refuses_a_flipped_sign_degrees_and_exchanged_joints() {
             "joint order",
         );
     }
+    // Whole joints (pairs whose positions stay within each other's limits
+    // on this motion; others are refused as beyond the limits first).
+    for (a, b) in [(2, 3), (5, 6), (1, 7), (1, 3)] {
+        assert_refused(
+            "panda",
+            &reordered(&clean, a, b),
+            Check::SwappedJoints,
+            &[&[a, b]],
+            "joint order",
+        );
+    }
+}
+
+/// An offset the model lacks that cancels the mean of a joint's torque
+/// (the suite's wrist: an offset larger than joint 7's small torque):
+/// without a constant column the model's torque then fits a gain near 0,
+/// which alone reads as "the model explains none of the torque". A rigid
+/// body with free parameters and an offset explains it, so it is not
+/// refused. The offset, -mean(tau^2) / mean(tau) on the joint whose torque
+/// is the most one-signed, brings the gain to 0 exactly.
+#[test]
+fn an_offset_that_cancels_a_joint_mean_torque_passes() {
+    let clean = record("panda", &oracle("panda"), 10.0, 21);
+    let tau = clean.tau();
+    let one_signed = |j: &usize| tau.column(*j).sum().abs() / tau.column(*j).norm();
+    let j = (0..7)
+        .max_by(|a, b| one_signed(a).total_cmp(&one_signed(b)))
+        .unwrap();
+    let offset = -tau.column(j).norm_squared() / tau.column(j).sum();
+    let mut shifted = tau.clone();
+    shifted.column_mut(j).add_scalar_mut(offset);
+    let d = assert_passes("panda", &clean.with_tau(shifted).unwrap());
+    let gain = d.sanity.model_torque_gain[j].unwrap();
+    assert!(gain.value.abs() < 0.2, "joint {}: {gain:?}", j + 1);
+    assert!(named(&d).contains(&(Kind::TorqueOffset, Some(j + 1), None)));
 }
 
 #[test]

@@ -137,7 +137,8 @@ pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
 use report::{describe, per_joint, regimes, residual_samples, residual_share};
 pub use sanity::{
-    Check, Exchange, Finding, Gated, Refusal, Sanity, positions as checks_as_logged, refuse,
+    Check, Exchange, Exchanged, Finding, Gated, Refusal, Sanity, positions as checks_as_logged,
+    refuse,
 };
 pub use settings::{COLLINEAR, MIN_SECONDS, Settings, reach};
 pub use stacked::Layout;

@@ -21,6 +21,7 @@
 mod positions;
 mod rates;
 mod relabel;
+mod reorder;
 mod scale;
 
 use serde::Serialize;
@@ -29,7 +30,7 @@ use super::candidate::Candidate;
 use super::stacked::Stacked;
 use crate::dynamics::Dynamics;
 use crate::trajectory::Trajectory;
-pub use relabel::Exchange;
+pub use relabel::{Exchange, Exchanged};
 pub use scale::Estimate;
 
 /// What the gate checks.
@@ -127,10 +128,18 @@ pub struct Sanity {
     /// joint), with its standard error: positive where friction resists
     /// the motion; `None` where the joint does not move.
     pub friction_power: Vec<Option<Estimate>>,
+    /// Per joint the share of the measured torque's energy that a rigid
+    /// body with the model's kinematics (every link's inertial parameters
+    /// free, each joint's friction and offset) leaves unexplained.
+    pub rigid_body_unexplained: Vec<f64>,
     /// The exchange of two joints' torque columns that fits the rigid body
     /// best, with its unexplained share over the recorded order's
     /// (`None` for one joint).
     pub best_exchange: Option<Exchange>,
+    /// The exchange of two joints' positions, velocities and torques
+    /// together that the model's torque explains best, with its
+    /// unexplained share over the recorded order's (`None` for one joint).
+    pub best_joint_exchange: Option<Exchange>,
     /// The checks that failed, when the gate was skipped
     /// (`--no-sanity-gate`); empty otherwise.
     pub findings: Vec<Finding>,
@@ -157,11 +166,21 @@ pub(super) fn torques(
 ) -> Sanity {
     let hint = positions::beyond_a_turn(model, recordings).unwrap_or_default();
     let gains: Vec<scale::Gain> = (0..data.dof).map(|j| scale::gain(data, j)).collect();
-    let exchanges = relabel::exchanges(data, candidates);
-    let swapped = disjoint(exchanges.iter().filter(|e| e.swapped()).collect());
+    let (exchanges, recorded) = relabel::exchanges(data, candidates);
+    let reorders = reorder::exchanges(model, data);
+    // Joints exchanged whole make the torque exchanges, fitted on the
+    // recorded positions, meaningless, and torques exchanged make the
+    // model's torque of any order wrong: the kind of the exchange that
+    // fits best decides which are reported.
+    let torques = disjoint(exchanges.iter().filter(|e| e.swapped()).collect());
+    let ratio = |found: &[&Exchange]| found.first().map_or(f64::INFINITY, |e| e.ratio);
+    let whole: Vec<&Exchange> = reorders.found.iter().collect();
+    let reordered = ratio(&whole) < ratio(&torques);
+    let swapped = if reordered { whole } else { torques };
     let mut findings: Vec<Finding> = swapped.iter().map(|e| e.finding()).collect();
-    // A joint in an exchanged pair fails the gain check because of it.
-    let exchanged = |j: usize| swapped.iter().any(|e| e.joints.contains(&(j + 1)));
+    // A joint in an exchanged pair fails the gain check because of it; with
+    // joints exchanged whole, every joint's model torque is wrong.
+    let exchanged = |j: usize| reordered || swapped.iter().any(|e| e.joints.contains(&(j + 1)));
     // Other units scale every joint's torque alike.
     let told: Vec<usize> = (0..data.dof).filter(|&j| gains[j].told(min_t)).collect();
     let scaled = told.len() >= 2
@@ -172,16 +191,26 @@ pub(super) fn torques(
             .iter()
             .enumerate()
             .filter(|(j, _)| !exchanged(*j))
-            .filter_map(|(j, gain)| gain.finding(data, j, min_t, scaled, &hint)),
+            .filter_map(|(j, gain)| {
+                let rigid = (recorded.unexplained[j], recorded.friction[j]);
+                gain.finding(data, j, min_t, scaled, rigid, &hint)
+            }),
     );
     Sanity {
         model_torque_gain: gains.iter().map(|g| g.model).collect(),
         friction_power: gains.iter().map(|g| g.friction_power).collect(),
-        best_exchange: exchanges
-            .into_iter()
-            .min_by(|a, b| a.ratio.total_cmp(&b.ratio)),
+        rigid_body_unexplained: recorded.unexplained,
+        best_exchange: best(exchanges),
+        best_joint_exchange: best(reorders.each),
         findings,
     }
+}
+
+/// The exchange with the lowest ratio.
+fn best(exchanges: Vec<Exchange>) -> Option<Exchange> {
+    exchanges
+        .into_iter()
+        .min_by(|a, b| a.ratio.total_cmp(&b.ratio))
 }
 
 /// The exchanges that share no joint, best first: with joints 2 and 4

@@ -29,13 +29,25 @@ use super::{Check, Finding};
 /// "The sanity gate").
 pub const EXCHANGE_RATIO: f64 = 0.25;
 
-/// Two joints' torque columns exchanged, against the recorded order.
+/// What an exchange moves between two joints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Exchanged {
+    /// The torque columns alone (judged by a rigid-body fit).
+    Torques,
+    /// Positions, velocities and torques together (judged by the model's
+    /// torque, see `reorder.rs`).
+    Joints,
+}
+
+/// Two joints' columns exchanged, against the recorded order.
 #[derive(Debug, Clone, Serialize)]
 pub struct Exchange {
+    pub columns: Exchanged,
     /// The two joints, 1-based.
     pub joints: [usize; 2],
-    /// The larger share of the two joints' torque energy the rigid-body
-    /// fit leaves unexplained, exchanged and as recorded.
+    /// The larger share of the two joints' torque energy the fit leaves
+    /// unexplained, exchanged and as recorded.
     pub exchanged: f64,
     pub recorded: f64,
     /// `exchanged / recorded`.
@@ -46,6 +58,22 @@ pub struct Exchange {
 }
 
 impl Exchange {
+    pub(super) fn new(
+        columns: Exchanged,
+        joints: [usize; 2],
+        exchanged: f64,
+        recorded: f64,
+    ) -> Self {
+        Exchange {
+            columns,
+            joints,
+            exchanged,
+            recorded,
+            ratio: exchanged / recorded.max(f64::MIN_POSITIVE),
+            flip_fits_better: false,
+        }
+    }
+
     /// Whether the two joints look exchanged.
     pub(super) fn swapped(&self) -> bool {
         self.ratio <= EXCHANGE_RATIO && !self.flip_fits_better
@@ -53,15 +81,25 @@ impl Exchange {
 
     pub(super) fn finding(&self) -> Finding {
         let [j, k] = self.joints;
+        let seen = match self.columns {
+            Exchanged::Torques => format!(
+                "a rigid-body fit of the torques leaves {:.2}% of their torque unexplained with \
+                 tau{j} and tau{k} swapped",
+                100.0 * self.exchanged
+            ),
+            Exchanged::Joints => format!(
+                "the model's torque leaves {:.2}% of their torque unexplained with their \
+                 positions, velocities and torques swapped",
+                100.0 * self.exchanged
+            ),
+        };
         Finding {
             check: Check::SwappedJoints,
             joints: vec![j, k],
             value: self.ratio,
             message: format!(
-                "joints {j} and {k} look exchanged: a rigid-body fit of the torques leaves {:.2}% \
-                 of their torque unexplained with tau{j} and tau{k} swapped, against {:.1}% as \
-                 recorded: check the joint order (the CSV's columns, `--joints` for a bag)",
-                100.0 * self.exchanged,
+                "joints {j} and {k} look exchanged: {seen}, against {:.1}% as recorded: check the \
+                 joint order (the CSV's columns, `--joints` for a bag)",
                 100.0 * self.recorded
             ),
         }
@@ -198,12 +236,21 @@ fn pseudo_inverse(a: &DMatrix<f64>) -> DMatrix<f64> {
     DMatrix::from_fn(p, p, |i, j| inner[(i, j)] * d[i] * d[j])
 }
 
-/// Every pair of joints' exchange, against the recorded order.
-pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchange> {
+/// What the rigid-body fit (free parameters, each joint's own friction and
+/// offset) says of each joint's torque as recorded.
+pub(super) struct Recorded {
+    /// The share of the joint's torque energy left unexplained.
+    pub(super) unexplained: Vec<f64>,
+    /// The joint's viscous and Coulomb coefficients fitted beside the free
+    /// rigid body: a payload or a heavier link the model lacks does not
+    /// leak into them.
+    pub(super) friction: Vec<[f64; 2]>,
+}
+
+/// Every pair of joints' exchange, against the recorded order, and what
+/// the fit says of the recorded order.
+pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> (Vec<Exchange>, Recorded) {
     let n = data.dof;
-    if n < 2 {
-        return Vec::new();
-    }
     let fit = Fit::new(data, candidates);
     let order: Vec<usize> = (0..n).collect();
     let plus = vec![1.0; n];
@@ -235,6 +282,11 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
         })
         .collect();
     let as_recorded = |i: usize| shares[i][0];
+    let own = |i: usize, f: usize| thetas[0][fit.inertial.len() + fit.own.len() * i + f];
+    let recorded = Recorded {
+        unexplained: (0..n).map(as_recorded).collect(),
+        friction: (0..n).map(|i| [own(i, 0), own(i, 1)]).collect(),
+    };
     let flipped = |f: usize, i: usize| shares[i][1 + f];
     // Joint i's exchanges follow in pair order after its n + 1 shares.
     let exchanged = |p: usize, i: usize| {
@@ -244,7 +296,7 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
             .count();
         shares[i][1 + n + before]
     };
-    pairs
+    let exchanges = pairs
         .iter()
         .enumerate()
         .map(|(p, &(j, k))| {
@@ -252,12 +304,10 @@ pub(super) fn exchanges(data: &Stacked, candidates: &[Candidate]) -> Vec<Exchang
             let recorded = as_recorded(j).max(as_recorded(k));
             let flip = |f: usize| flipped(f, j).max(flipped(f, k));
             Exchange {
-                joints: [j + 1, k + 1],
-                exchanged,
-                recorded,
-                ratio: exchanged / recorded.max(f64::MIN_POSITIVE),
                 flip_fits_better: flip(j).min(flip(k)) < exchanged,
+                ..Exchange::new(Exchanged::Torques, [j + 1, k + 1], exchanged, recorded)
             }
         })
-        .collect()
+        .collect();
+    (exchanges, recorded)
 }
