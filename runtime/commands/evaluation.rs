@@ -224,7 +224,8 @@ fn text_report(
     mse_as_logged: &[f64],
 ) -> String {
     use std::fmt::Write as _;
-    let mut text = format!("model {name}: {samples} samples\n");
+    let noun = if samples == 1 { "sample" } else { "samples" };
+    let mut text = format!("model {name}: {samples} {noun}\n");
     let _ = writeln!(text, "{preprocessing}");
     let levers = crate::dynamics::joint_levers(model);
     let unit = |j: usize| match levers.get(j) {
