@@ -19,6 +19,8 @@ pub(super) struct Fit {
     pub(super) coefficients: DVector<f64>,
     /// Information matrix J^T J at `theta`, J the residual's Jacobian.
     pub(super) information: DMatrix<f64>,
+    /// d coefficients / d theta at `theta`.
+    pub(super) jacobian: DMatrix<f64>,
 }
 
 /// Fits the `selected` candidates on the groups `keep` accepts: linear
@@ -90,6 +92,7 @@ fn fit_with(
         theta,
         coefficients: coef,
         information,
+        jacobian,
     })
 }
 
