@@ -84,9 +84,11 @@ pub(super) fn select(
     dof: usize,
     candidates: &[Candidate],
     settings: Settings,
+    withdrawn: &[usize],
 ) -> Selection {
     let mut selected: Vec<usize> = Vec::new();
-    let mut refused: Vec<usize> = Vec::new();
+    // Withdrawn candidates compete no more (see `choose`).
+    let mut refused: Vec<usize> = withdrawn.to_vec();
     let mut notes = Vec::new();
     let mut alternatives = Vec::new();
     let all: Vec<usize> = (0..candidates.len()).collect();
@@ -456,7 +458,7 @@ mod tests {
     fn a_runner_up_that_explains_the_same_structure_is_reported() {
         let (data, candidates) = case(0.002);
         let m = Moments::new(&data, &candidates);
-        let selection = select(&m, 1, &candidates, Settings::default());
+        let selection = select(&m, 1, &candidates, Settings::default(), &[]);
         assert_eq!(selection.selected, vec![0]);
         let alternative = selection.alternatives.as_slice();
         assert_eq!(alternative.len(), 1, "{alternative:?}");
@@ -468,7 +470,7 @@ mod tests {
     fn a_runner_up_the_data_tell_apart_is_not() {
         let (data, candidates) = case(0.5);
         let m = Moments::new(&data, &candidates);
-        let selection = select(&m, 1, &candidates, Settings::default());
+        let selection = select(&m, 1, &candidates, Settings::default(), &[]);
         assert_eq!(selection.selected, vec![0]);
         assert!(selection.alternatives.is_empty());
     }
