@@ -208,3 +208,40 @@ fn hold_mass(candidates: &mut [Candidate], which: &[usize]) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidate::linear as candidate;
+    use crate::diagnose::kind::Kind;
+    use crate::diagnose::search::sweep;
+
+    /// Residual `error` sin(q) + 0.3 qd, the torque scale's column sin(q)
+    /// fitted beside viscous friction: an error of 0.4 is beyond the bound,
+    /// 0.1 within; withdrawn, the scale is not selected again.
+    #[test]
+    fn a_scale_beyond_a_quarter_is_found_and_withdrawn() {
+        for (error, large) in [(0.4, true), (0.1, false)] {
+            let (data, q, qd) = sweep(|q, qd| error * q.sin() + 0.3 * qd);
+            let candidates = vec![
+                candidate(Kind::ViscousFriction, qd),
+                candidate(Kind::TorqueScale, q.map(f64::sin)),
+            ];
+            let m = Moments::new(&data, &candidates);
+            let found = large_scales(&m, &candidates, &[0, 1]);
+            match large {
+                true => {
+                    assert_eq!(found.len(), 1, "{found:?}");
+                    assert_eq!(found[0].0, 1);
+                    assert!((found[0].1 - error).abs() < 1e-9, "{found:?}");
+                }
+                false => assert!(found.is_empty(), "{found:?}"),
+            }
+            let settings = Settings::default();
+            let all = select(&m, 1, &candidates, settings, &[]).selected;
+            assert!(all.contains(&1), "{all:?}");
+            let without = select(&m, 1, &candidates, settings, &[1]).selected;
+            assert!(!without.contains(&1), "{without:?}");
+        }
+    }
+}

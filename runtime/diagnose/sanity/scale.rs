@@ -26,8 +26,7 @@ use super::{Check, Finding};
 /// effect adds torque the model lacks; only one that cancels over half of
 /// the model's torque on average (a gravity-balancing spring carrying more
 /// than half of the load, a modelled link over twice as heavy as the real
-/// one) brings the gain this low. 0.5 is also the bottom of the torque
-/// scales the diagnosis calls plausible (0.5-2).
+/// one) brings the gain this low.
 pub const LEAST_GAIN: f64 = 0.5;
 
 /// The gain clearly above which on every joint (where the model's torque
@@ -35,9 +34,7 @@ pub const LEAST_GAIN: f64 = 0.5;
 /// explaining at least [`FLIP_EXPLAINS`] of some joint's measured torque
 /// (a joint whose torque is mostly friction is explained by no multiple
 /// of the model's), the torques are logged in other units or are another
-/// quantity: 1 /
-/// [`LEAST_GAIN`], the top of the torque scales the diagnosis calls
-/// plausible. A torque logged in mN m follows 1000 times the model's on
+/// quantity: 1 / [`LEAST_GAIN`]. A torque logged in mN m follows 1000 times the model's on
 /// every joint. A missing effect does not scale every joint alike: a heavy
 /// payload makes a 3-DOF arm's joint 3 follow 2.5 times the model's torque
 /// (explaining most of it) while joint 1, about the vertical, follows it
