@@ -19,7 +19,9 @@ compared as `evaluate` compares: model torque on the filtered full-rate
 states (`sdnn preprocess --rate` at the recording's rate), both torques
 through the same zero-phase Butterworth, one cut-off period trimmed at each
 end. The applied model is scored in that emulation too, so every ratio
-compares the same pipeline. Results: docs/diagnosis-measured.md, "A second
+compares the same pipeline. Corrections the diagnosis prints (`--torque-scale`,
+`--torque-delay`) are passed to `evaluate` and listed; the emulation scores the
+applied model alone. Results: docs/diagnosis-measured.md, "A second
 real arm".
 """
 
@@ -63,9 +65,15 @@ def sdnn(binary, *args) -> subprocess.CompletedProcess:
     return subprocess.run([binary, *map(str, args)], capture_output=True, text=True, check=True)
 
 
-def evaluate_mse(binary, toml, files):
-    out = sdnn(binary, "evaluate", "--model", toml, "--data", *files, "--format", "json").stdout
+def evaluate_mse(binary, toml, files, corrections=()):
+    out = sdnn(binary, "evaluate", "--model", toml, "--data", *files, *corrections,
+               "--format", "json").stdout
     return json.loads(out)["mse"]
+
+
+def printed_corrections(report: str) -> list:
+    """The `--torque-scale J=S` and `--torque-delay S` a diagnosis printed."""
+    return [a for c in re.findall(r"--torque-(?:scale|delay) \S+", report) for a in c.split()]
 
 
 class Filtered:
@@ -186,9 +194,13 @@ def main():
         label = "3 recordings" if len(names) == 3 else names[0]
         applied = applied_from[len(names), names[0]] = work / f"applied-{len(names)}-{names[0]}.toml"
         applied.write_text(described.read_text())
-        sdnn(binary, "diagnose", "--model", described, "--data", *[csv[n] for n in names],
-             "--apply", "--toml", applied)
-        scored = evaluate_mse(binary, applied, [csv[n] for n in VALIDATION])
+        report = sdnn(binary, "diagnose", "--model", described, "--data", *[csv[n] for n in names],
+                      "--apply", "--toml", applied).stdout
+        corrections = printed_corrections(report)
+        scored = evaluate_mse(binary, applied, [csv[n] for n in VALIDATION], corrections)
+        if corrections:
+            print(f"{label}: printed corrections {' '.join(corrections)}, applied by evaluate; "
+                  "the emulated rows and ratios are the model alone")
 
         def tau_of(rec, toml=applied):
             out = sdnn(binary, "tau", "--model", toml, "--input", rec.path,
