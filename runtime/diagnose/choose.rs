@@ -4,7 +4,9 @@
 //! rounds off, offset or direction-dependent friction at rest).
 
 use super::alternatives::Alternative;
-use super::candidate::{Candidate, Shape, label};
+use super::candidate::{Candidate, Shape, label, width};
+use super::fit::fit;
+use super::kind::Kind;
 use super::moments::Moments;
 use super::select::{body_identifiable, mass_identifiable, select};
 use super::settings::Settings;
@@ -130,15 +132,15 @@ fn large_scales(
     candidates: &[Candidate],
     selected: &[usize],
 ) -> Vec<(usize, f64)> {
-    let Some(full) = super::fit::fit(moments, candidates, selected, |_| true) else {
+    let Some(full) = fit(moments, candidates, selected, |_| true) else {
         return Vec::new();
     };
     let mut at = 0;
     let mut large = Vec::new();
     for &c in selected {
         let error = full.theta[at];
-        at += super::candidate::width(&candidates[c]);
-        if candidates[c].kind == super::kind::Kind::TorqueScale && error.abs() > NAMED_SCALE_ERROR {
+        at += width(&candidates[c]);
+        if candidates[c].kind == Kind::TorqueScale && error.abs() > NAMED_SCALE_ERROR {
             large.push((c, error.abs()));
         }
     }
@@ -213,7 +215,6 @@ fn hold_mass(candidates: &mut [Candidate], which: &[usize]) {
 mod tests {
     use super::*;
     use crate::diagnose::candidate::linear as candidate;
-    use crate::diagnose::kind::Kind;
     use crate::diagnose::search::sweep;
 
     /// Residual `error` sin(q) + 0.3 qd, the torque scale's column sin(q)
