@@ -10,6 +10,7 @@ use super::fit::{Fit, fit};
 use super::gain::Gain;
 use super::kind::Kind;
 use super::moments::Moments;
+use super::payload_body::plausible_moment;
 use super::stacked::EXTENT_MARGIN;
 use super::uncertainty::{fit_robust, robust_quantity};
 use super::whole::{PHYSICAL_LOSS, com_distance, named_within};
@@ -104,8 +105,21 @@ pub(super) fn physical(
             _ => "the last link is lighter than modelled (an inertial error, not a payload)",
         },
         Kind::Payload => {
-            let com = &values[1..];
+            let com = &values[1..4];
             let distance = com.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if let Shape::Body {
+                own_inertia: true, ..
+            } = candidate.shape
+                && distance <= reach
+                && !plausible_moment(values[4], value, reach)
+            {
+                return Err(format!(
+                    "{at}: the data fit the payload a moment of inertia about its centre of mass \
+                     of {:.3e} kg m^2, not that of a {value:.3} kg body within the arm's reach \
+                     ({reach:.2} m); kept a point mass (it {cut})",
+                    values[4]
+                ));
+            }
             if distance <= reach {
                 return Ok(());
             }
@@ -397,6 +411,13 @@ pub(super) fn significant(
     let min_t = searched_threshold(min_t, candidate.searched);
     let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
     let ok = match (&candidate.kind, &candidate.shape) {
+        // A payload's mass, and its own moment of inertia where it has one.
+        (
+            Kind::Payload,
+            Shape::Body {
+                own_inertia: true, ..
+            },
+        ) => t(0, 0.0) > min_t && t(4, 0.0) > min_t,
         (Kind::Payload, _) => t(0, 0.0) > min_t,
         // A tilt may be about one axis only, a ripple's phase anything; a
         // spring's constant (its rest angle times its stiffness) may well

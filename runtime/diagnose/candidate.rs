@@ -348,6 +348,7 @@ fn payload_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candi
             offset: [0.0; 10],
             base_mass: 0.0,
             base_moment: Vector3::zeros(),
+            own_inertia: false,
         },
         ..link_candidate(k, link, columns)
     }
@@ -379,6 +380,7 @@ fn link_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidat
             offset: point_mass(-mass, &com),
             base_mass: mass,
             base_moment: moment,
+            own_inertia: false,
         },
         settings: Vec::new(),
         searched: 1,

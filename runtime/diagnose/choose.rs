@@ -11,7 +11,7 @@ use super::moments::Moments;
 use super::select::{body_identifiable, mass_identifiable, select};
 use super::settings::Settings;
 use super::stacked::Stacked;
-use super::{companion, dry, held, heldout, report, smooth, supported};
+use super::{companion, dry, held, heldout, payload_body, report, smooth, supported};
 
 /// What the data name, and what the report needs of how.
 pub(super) struct Chosen {
@@ -59,6 +59,16 @@ pub(super) fn choose(
             hold_mass(candidates, &retry);
             second_moments.retain(|c| !retry.contains(c));
             selection = select(&moments, data.dof, candidates, settings, &withdrawn);
+        }
+        if let Some(note) = payload_body::give_inertia(
+            &moments,
+            data.dof,
+            candidates,
+            &selection.selected,
+            settings,
+        ) {
+            selection = select(&moments, data.dof, candidates, settings, &withdrawn);
+            selection.notes.push(note);
         }
         let (mut selected, mut notes) = (selection.selected, selection.notes);
         // Pruning and the body swaps may have changed the selection since
@@ -199,6 +209,7 @@ fn hold_mass(candidates: &mut [Candidate], which: &[usize]) {
             offset,
             base_mass,
             base_moment,
+            ..
         } = candidates[c].shape
         {
             candidates[c].shape = Shape::Moment {

@@ -6,7 +6,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, width};
-use super::shape::point_mass;
+use super::shape::{ISOTROPIC, point_mass};
 use super::solve::{SquareRoot, pseudo_solve};
 
 /// Most steps of one descent. Converged descents take a handful; the cap
@@ -95,9 +95,22 @@ fn project_masses(
     let mut bodies = Vec::new();
     let (mut row, mut col) = (0, 0);
     for &c in selected {
-        if let Shape::Body { offset, .. } = &candidates[c].shape {
+        if let Shape::Body {
+            offset,
+            own_inertia,
+            ..
+        } = &candidates[c].shape
+        {
             let com = Vector3::new(theta[col + 1], theta[col + 2], theta[col + 3]);
-            bodies.push((row, col, point_mass(1.0, &com), *offset));
+            // Everything but the mass term is held: the offset, and a
+            // payload's own inertia.
+            let mut rest = *offset;
+            if *own_inertia {
+                for k in ISOTROPIC {
+                    rest[k] += theta[col + 4];
+                }
+            }
+            bodies.push((row, col, point_mass(1.0, &com), rest));
         }
         row += candidates[c].columns.len();
         col += width(&candidates[c]);
@@ -108,9 +121,9 @@ fn project_masses(
     let (coefficients, _) = coefficients(candidates, selected, theta);
     let mut held = coefficients;
     let mut units = DMatrix::zeros(held.len(), bodies.len());
-    for (k, (row, _, unit, offset)) in bodies.iter().enumerate() {
+    for (k, (row, _, unit, rest)) in bodies.iter().enumerate() {
         for i in 0..10 {
-            held[row + i] = offset[i];
+            held[row + i] = rest[i];
             units[(row + i, k)] = unit[i];
         }
     }
@@ -231,6 +244,7 @@ mod tests {
                 offset,
                 base_mass: m0,
                 base_moment: c0 * m0,
+                own_inertia: false,
             },
             names: vec!["mass", "cx", "cy", "cz"],
             columns,

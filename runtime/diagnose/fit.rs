@@ -140,6 +140,7 @@ fn starts(
             Shape::Body {
                 base_mass,
                 base_moment,
+                own_inertia,
                 ..
             } => {
                 let mass = base_mass + x0[at];
@@ -150,6 +151,9 @@ fn starts(
                     Vector3::zeros()
                 };
                 theta.extend([mass, com.x, com.y, com.z]);
+                if *own_inertia {
+                    theta.push(0.0);
+                }
                 at += 4;
             }
             Shape::Moment { base_moment, .. } => {

@@ -102,6 +102,7 @@ mod kind;
 mod modelled;
 mod moments;
 mod nearest;
+mod payload_body;
 pub mod plots;
 mod produce;
 mod report;

@@ -174,6 +174,15 @@ pub(super) fn effect(
         }
         parameters.insert("com".into(), Value::Array(com));
         ci95.insert("com".into(), Value::Array(interval));
+        if let Shape::Body {
+            own_inertia: true, ..
+        } = candidate.shape
+        {
+            // A payload's own moment of inertia about its COM, every axis.
+            let (j, dj) = values[4];
+            parameters.insert("inertia".into(), json!(j));
+            ci95.insert("inertia".into(), json!([j - dj, j + dj]));
+        }
         if candidate.kind == Kind::InertialError {
             let nominal_com = if *base_mass > 0.0 {
                 base_moment / *base_mass

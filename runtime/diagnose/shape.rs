@@ -29,11 +29,14 @@ pub(super) enum Shape {
     Asymmetry { modelled_coulomb: f64 },
     /// theta = (m, cx, cy, cz) over a link's ten inertial columns:
     /// coefficients m * [1, c, |c|^2 E - c c^T] + `offset`, and `base` the
-    /// (mass, first moment) the linear start adds its fit to.
+    /// (mass, first moment) the linear start adds its fit to. With
+    /// `own_inertia`, theta has a fifth entry j: a payload's own moment of
+    /// inertia about its COM, the same about every axis (j E added).
     Body {
         offset: [f64; 10],
         base_mass: f64,
         base_moment: Vector3<f64>,
+        own_inertia: bool,
     },
     /// theta = the first moment h = m c of a link whose mass the data cannot
     /// identify (see [`mass_identifiable`]), the mass held at the model's
@@ -70,7 +73,7 @@ impl Shape {
                 columns
             }
             Shape::Tilt { .. } => 2,
-            Shape::Body { .. } => 4,
+            Shape::Body { own_inertia, .. } => 4 + usize::from(*own_inertia),
             Shape::Moment { .. } => 3,
         }
     }
@@ -90,17 +93,28 @@ impl Shape {
                     DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, -a / along, -b / along]);
                 (vec![a, b, along - g], jacobian)
             }
-            Shape::Body { offset, .. } => {
+            Shape::Body {
+                offset,
+                own_inertia,
+                ..
+            } => {
                 let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
                 let unit = point_mass(1.0, &c);
-                let coefficients = (0..10).map(|k| m * unit[k] + offset[k]).collect();
-                let mut jacobian = DMatrix::zeros(10, 4);
+                let mut coefficients: Vec<f64> =
+                    (0..10).map(|k| m * unit[k] + offset[k]).collect();
+                let mut jacobian = DMatrix::zeros(10, theta.len());
                 for k in 0..10 {
                     jacobian[(k, 0)] = unit[k];
                 }
                 for (a, row) in unit_partials(&c).iter().enumerate() {
                     for k in 0..10 {
                         jacobian[(k, a + 1)] = m * row[k];
+                    }
+                }
+                if *own_inertia {
+                    for k in ISOTROPIC {
+                        coefficients[k] += theta[4];
+                        jacobian[(k, 4)] = 1.0;
                     }
                 }
                 (coefficients, jacobian)
@@ -149,9 +163,10 @@ impl Shape {
                 )
             }
             Shape::Body { .. } => {
+                // The payload's own inertia is linear: its rows stay zero.
                 let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
                 let second = unit_curvature(weights);
-                let mut h = DMatrix::zeros(4, 4);
+                let mut h = DMatrix::zeros(theta.len(), theta.len());
                 for (a, row) in unit_partials(&c).iter().enumerate() {
                     let cross: f64 = row.iter().zip(weights).map(|(d, w)| d * w).sum();
                     h[(0, a + 1)] = cross;
@@ -169,6 +184,9 @@ impl Shape {
         }
     }
 }
+
+/// The diagonal inertia entries (ixx, iyy, izz) among the ten.
+pub(super) const ISOTROPIC: [usize; 3] = [4, 6, 9];
 
 /// d point_mass(1, c) / dc_a, row a.
 fn unit_partials(c: &Vector3<f64>) -> [[f64; 10]; 3] {
@@ -326,8 +344,8 @@ mod curvature_tests {
             weights in prop::collection::vec(-3.0f64..3.0, 10),
         ) {
             let zero = [0.0; 10];
-            let body = Shape::Body { offset: zero, base_mass: m, base_moment: Vector3::zeros() };
-            let theta = [m, c[0], c[1], c[2]];
+            let body = Shape::Body { offset: zero, base_mass: m, base_moment: Vector3::zeros(), own_inertia: true };
+            let theta = [m, c[0], c[1], c[2], 0.01];
             prop_assert!(close(&body.curvature(&theta, &weights), &differenced(&body, &theta, &weights)));
             let moment = Shape::Moment { offset: zero, base_mass: m, base_moment: Vector3::zeros() };
             let h = [m * c[0], m * c[1], m * c[2]];

@@ -9,8 +9,9 @@ use toml_edit::{Array, ArrayOfTables, DocumentMut, InlineTable, Item, Table, Val
 use super::diagnosis::Diagnosis;
 use super::kind::Kind;
 
-/// Radius of the sphere whose inertia a payload gets (a point mass would have
-/// none, which the description rejects as not positive definite).
+/// Radius of the sphere whose inertia a payload without a fitted moment of
+/// its own gets (a point mass would have none, which the description
+/// rejects as not positive definite).
 const PAYLOAD_RADIUS: f64 = 0.02;
 
 /// Adds the effects of `diagnosis` to the description text. Joint effects add
@@ -65,7 +66,11 @@ pub fn apply_to_text(
                     })
                     .collect::<Result<Vec<f64>>>()?;
                 let parent = effect.link.as_deref().unwrap_or(last_link);
-                add_payload(&mut doc, mass, &com, parent)?;
+                // Without a fitted moment the payload gets a small sphere's.
+                let moment = value("inertia")
+                    .filter(|&j| j > 0.0)
+                    .unwrap_or(0.4 * mass * PAYLOAD_RADIUS * PAYLOAD_RADIUS);
+                add_payload(&mut doc, mass, &com, moment, parent)?;
             }
             (Kind::InertialError, _) if effect.parameters.contains_key("inertia") => {
                 let link = effect
@@ -416,12 +421,20 @@ fn set_keeping_decor(table: &mut Table, key: &str, value: Value) {
     }
 }
 
-fn add_payload(doc: &mut DocumentMut, mass: f64, com: &[f64], parent: &str) -> Result<()> {
+fn add_payload(
+    doc: &mut DocumentMut,
+    mass: f64,
+    com: &[f64],
+    moment: f64,
+    parent: &str,
+) -> Result<()> {
     if !mass.is_finite() || mass <= 0.0 || com.len() != 3 {
         bail!("payload needs a positive mass and a 3-vector COM, found {mass} and {com:?}");
     }
+    if !moment.is_finite() || moment <= 0.0 {
+        bail!("payload needs a positive moment of inertia, found {moment}");
+    }
     let name = unique_link_name(doc, "payload");
-    let moment = 0.4 * mass * PAYLOAD_RADIUS * PAYLOAD_RADIUS;
     let mut link = Table::new();
     link.insert("name", toml_edit::value(name.clone()));
     link.insert("mass", toml_edit::value(mass));

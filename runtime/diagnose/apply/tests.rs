@@ -253,6 +253,29 @@ fn payload_becomes_a_fixed_child_body() {
     );
 }
 
+/// A payload with a fitted moment of inertia of its own carries it; one
+/// without gets a small sphere's.
+#[test]
+fn a_payload_carries_its_fitted_moment_of_inertia() {
+    let inertia_of = |parameters: serde_json::Value| {
+        let d = diagnosis(vec![effect(Kind::Payload, None, parameters)]);
+        let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
+        let parsed = codegen::Description::parse(&out, "m", Path::new("m.toml")).unwrap();
+        let before = codegen::Description::parse(SOURCE, "m", Path::new("m.toml")).unwrap();
+        let (p, q) = (
+            parsed.chain().bodies[0].inertial.standard_parameters(),
+            before.chain().bodies[0].inertial.standard_parameters(),
+        );
+        // izz about the origin grows by the point mass's m (x^2 + y^2)
+        // and the payload's own moment.
+        p[9] - q[9] - 0.4 * 0.01 * 0.01
+    };
+    let fitted = inertia_of(serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2], "inertia": 0.003}));
+    assert!((fitted - 0.003).abs() < 1e-12, "{fitted}");
+    let point = inertia_of(serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2]}));
+    assert!((point - 0.4 * 0.4 * 0.02 * 0.02).abs() < 1e-12, "{point}");
+}
+
 /// A comment after a value `--apply` changes stays on its line, in an
 /// `[joints.effects]` table and in an inline one.
 #[test]

@@ -1,0 +1,78 @@
+//! A payload is a body, not a point: where the data determine its own
+//! moment of inertia about its centre of mass (a tool or an object turned
+//! by the wrist), the payload named as a point mass is given one. One
+//! moment, the same about every axis (a compact body's, a sphere's 2/5 m
+//! r^2): a tool's six inertia entries are rarely determined by torques
+//! their size, and fitted freely they trade with the noise of the joints
+//! near it. Without it the wrist's armatures, or a neighbouring link's
+//! inertial error, stand in for it.
+
+use super::admit::admits;
+use super::alternatives::NEAR;
+use super::candidate::{Candidate, Shape, label};
+use super::heldout::{Scoring, cv_mse};
+use super::kind::Kind;
+use super::moments::Moments;
+use super::settings::Settings;
+
+/// Gives the selected point-mass payload its own inertia where, judged at
+/// the step that named the payload (beside the effects named before it),
+/// the inertia is significant and physical and lowers the summed held-out
+/// MSE without raising any joint's beyond [`NEAR`]. Returns the note to
+/// give when it did: the selection is then run again with the payload a
+/// body, so that nothing stands in for its inertia.
+pub(super) fn give_inertia(
+    m: &Moments,
+    dof: usize,
+    candidates: &mut [Candidate],
+    selected: &[usize],
+    settings: Settings,
+) -> Option<String> {
+    let at = selected.iter().position(|&c| {
+        candidates[c].kind == Kind::Payload
+            && matches!(candidates[c].shape, Shape::Body { own_inertia, .. } if !own_inertia)
+    })?;
+    let payload = selected[at];
+    let step = &selected[..=at];
+    let before = cv_mse(m, dof, candidates, step, Scoring::Fitted);
+    let point = candidates[payload].clone();
+    if let Shape::Body { own_inertia, .. } = &mut candidates[payload].shape {
+        *own_inertia = true;
+    }
+    candidates[payload].names.push("inertia");
+    let after = cv_mse(m, dof, candidates, step, Scoring::Fitted);
+    let (sum_before, sum_after) = (before.iter().sum::<f64>(), after.iter().sum::<f64>());
+    let near = after.iter().zip(&before).all(|(a, b)| *a <= NEAR * b);
+    if sum_after < sum_before && near && admits(m, candidates, step, settings) {
+        return Some(format!(
+            "{}: the data determine the payload's own moment of inertia about its centre of mass \
+             (one moment about every axis): a body, not a point mass; at the step that named \
+             it, summed held-out MSE {sum_before:.4e} -> {sum_after:.4e} N m^2",
+            label(&candidates[payload]),
+        ));
+    }
+    candidates[payload] = point;
+    None
+}
+
+/// Whether a payload's own moment of inertia `moment` about its COM can be
+/// a body's of mass `m` within `reach` of the link origin: not negative,
+/// and at most a thin shell's of that radius (2/3 m r^2).
+pub(super) fn plausible_moment(moment: f64, m: f64, reach: f64) -> bool {
+    (0.0..=2.0 / 3.0 * m * reach * reach).contains(&moment)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sphere's moment is plausible; a negative one, or one larger than
+    /// a body within reach can have, is not.
+    #[test]
+    fn a_payload_moment_is_a_body_within_reach() {
+        let sphere = 0.4 * 1.5 * 0.04 * 0.04;
+        assert!(plausible_moment(sphere, 1.5, 1.0));
+        assert!(!plausible_moment(-1e-4, 1.5, 1.0));
+        assert!(!plausible_moment(2.0, 1.5, 1.0));
+    }
+}
