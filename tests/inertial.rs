@@ -213,6 +213,42 @@ fn payload_on_the_last_link() {
     eprintln!("payload: {text}");
 }
 
+/// A 0.8 kg ball of 6 cm radius on the Panda's flange: a body, not a
+/// point. Named as one payload with its own moment of inertia about its
+/// COM (2/5 m r^2 = 0.00115 kg m^2) within 25%, its interval holding the
+/// truth, and nothing beside it (a point mass left armatures of the same
+/// size on the wrist joints).
+#[test]
+fn a_payload_with_its_own_inertia_is_one_body() {
+    let (mass, com, radius) = (0.8, [0.05, -0.04, 0.15], 0.06);
+    let moment = 0.4 * mass * radius * radius;
+    let mut truth = oracle("panda");
+    let last = truth.bodies.len() - 1;
+    let p = &mut truth.bodies[last].parameters;
+    add_point_mass(p, mass, com);
+    for k in [4, 6, 9] {
+        p[k] += moment;
+    }
+    let recordings = recordings_of("panda", &truth, 3);
+    let pipeline = sdnn::preprocess::Pipeline::auto(&recordings, None, None).unwrap();
+    let nominal = sdnn::model("panda").unwrap();
+    let d = sdnn::diagnose::diagnose(nominal, &recordings, &pipeline, Default::default()).unwrap();
+    let text = serde_json::to_string(&d).unwrap();
+    assert_eq!(d.effects.len(), 1, "{text}");
+    let payload = &d.effects[0];
+    assert_eq!(payload.kind, Kind::Payload, "{text}");
+    let fitted = payload.parameters["inertia"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(
+        (fitted - moment).abs() <= 0.25 * moment,
+        "inertia {fitted}: {text}"
+    );
+    let interval = &payload.ci95["inertia"];
+    let (low, high) = (interval[0].as_f64().unwrap(), interval[1].as_f64().unwrap());
+    assert!(low <= moment && moment <= high, "interval: {text}");
+}
+
 /// Link 2 heavier by 20% with its centre of mass shifted, its inertia about
 /// the centre of mass unchanged. Link 2's origin lies on the joint-1 and
 /// joint-2 axes, so it never accelerates: its mass has no regressor column

@@ -15,12 +15,15 @@ use super::kind::Kind;
 use super::moments::Moments;
 use super::settings::Settings;
 
-/// Gives the selected point-mass payload its own inertia where, judged at
-/// the step that named the payload (beside the effects named before it),
-/// the inertia is significant and physical and lowers the summed held-out
-/// MSE without raising any joint's beyond [`NEAR`]. Returns the note to
-/// give when it did: the selection is then run again with the payload a
-/// body, so that nothing stands in for its inertia.
+/// Gives the point-mass payload its own inertia where, judged at the step
+/// that named it (beside the effects named before it), the inertia is
+/// significant and physical and lowers the summed held-out MSE without
+/// raising any joint's beyond [`NEAR`]; or where the step named the last
+/// link's inertial error instead and the payload with its inertia does as
+/// well on every joint (within [`NEAR`]: the payload is then named in the
+/// link error's place, see `alternatives::payload_over_link_error`).
+/// Returns the note to give when it did: the selection is then run again
+/// with the payload a body, so that nothing stands in for its inertia.
 pub(super) fn give_inertia(
     m: &Moments,
     dof: usize,
@@ -28,27 +31,34 @@ pub(super) fn give_inertia(
     selected: &[usize],
     settings: Settings,
 ) -> Option<String> {
-    let at = selected.iter().position(|&c| {
-        candidates[c].kind == Kind::Payload
-            && matches!(candidates[c].shape, Shape::Body { own_inertia, .. } if !own_inertia)
+    let payload = candidates.iter().position(|c| {
+        c.kind == Kind::Payload
+            && matches!(c.shape, Shape::Body { own_inertia, .. } if !own_inertia)
     })?;
-    let payload = selected[at];
-    let step = &selected[..=at];
-    let before = cv_mse(m, dof, candidates, step, Scoring::Fitted);
+    let at = selected.iter().position(|&c| {
+        c == payload
+            || (candidates[c].kind == Kind::InertialError
+                && candidates[c].link == candidates[payload].link)
+    })?;
+    let before = cv_mse(m, dof, candidates, &selected[..=at], Scoring::Fitted);
     let point = candidates[payload].clone();
     if let Shape::Body { own_inertia, .. } = &mut candidates[payload].shape {
         *own_inertia = true;
     }
     candidates[payload].names.push("inertia");
-    let after = cv_mse(m, dof, candidates, step, Scoring::Fitted);
+    let mut step = selected[..at].to_vec();
+    step.push(payload);
+    let after = cv_mse(m, dof, candidates, &step, Scoring::Fitted);
     let (sum_before, sum_after) = (before.iter().sum::<f64>(), after.iter().sum::<f64>());
     let near = after.iter().zip(&before).all(|(a, b)| *a <= NEAR * b);
-    if sum_after < sum_before && near && admits(m, candidates, step, settings) {
+    let better = sum_after < sum_before || selected[at] != payload;
+    if better && near && admits(m, candidates, &step, settings) {
         return Some(format!(
             "{}: the data determine the payload's own moment of inertia about its centre of mass \
              (one moment about every axis): a body, not a point mass; at the step that named \
-             it, summed held-out MSE {sum_before:.4e} -> {sum_after:.4e} N m^2",
+             {}, summed held-out MSE {sum_before:.4e}, with this body {sum_after:.4e} N m^2",
             label(&candidates[payload]),
+            label(&candidates[selected[at]]),
         ));
     }
     candidates[payload] = point;

@@ -100,8 +100,7 @@ impl Shape {
             } => {
                 let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
                 let unit = point_mass(1.0, &c);
-                let mut coefficients: Vec<f64> =
-                    (0..10).map(|k| m * unit[k] + offset[k]).collect();
+                let mut coefficients: Vec<f64> = (0..10).map(|k| m * unit[k] + offset[k]).collect();
                 let mut jacobian = DMatrix::zeros(10, theta.len());
                 for k in 0..10 {
                     jacobian[(k, 0)] = unit[k];

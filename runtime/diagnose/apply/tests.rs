@@ -270,7 +270,8 @@ fn a_payload_carries_its_fitted_moment_of_inertia() {
         // and the payload's own moment.
         p[9] - q[9] - 0.4 * 0.01 * 0.01
     };
-    let fitted = inertia_of(serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2], "inertia": 0.003}));
+    let fitted =
+        inertia_of(serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2], "inertia": 0.003}));
     assert!((fitted - 0.003).abs() < 1e-12, "{fitted}");
     let point = inertia_of(serde_json::json!({"mass": 0.4, "com": [0.0, 0.01, 0.2]}));
     assert!((point - 0.4 * 0.4 * 0.02 * 0.02).abs() < 1e-12, "{point}");
