@@ -10,7 +10,7 @@ use super::fit::{Fit, fit};
 use super::gain::Gain;
 use super::kind::Kind;
 use super::moments::Moments;
-use super::payload_body::plausible_moment;
+use super::shape::plausible_moment;
 use super::stacked::EXTENT_MARGIN;
 use super::uncertainty::{fit_robust, robust_quantity};
 use super::whole::{PHYSICAL_LOSS, com_distance, named_within};

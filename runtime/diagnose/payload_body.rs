@@ -64,25 +64,3 @@ pub(super) fn give_inertia(
     candidates[payload] = point;
     None
 }
-
-/// Whether a payload's own moment of inertia `moment` about its COM can be
-/// a body's of mass `m` within `reach` of the link origin: not negative,
-/// and at most a thin shell's of that radius (2/3 m r^2).
-pub(super) fn plausible_moment(moment: f64, m: f64, reach: f64) -> bool {
-    (0.0..=2.0 / 3.0 * m * reach * reach).contains(&moment)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A sphere's moment is plausible; a negative one, or one larger than
-    /// a body within reach can have, is not.
-    #[test]
-    fn a_payload_moment_is_a_body_within_reach() {
-        let sphere = 0.4 * 1.5 * 0.04 * 0.04;
-        assert!(plausible_moment(sphere, 1.5, 1.0));
-        assert!(!plausible_moment(-1e-4, 1.5, 1.0));
-        assert!(!plausible_moment(2.0, 1.5, 1.0));
-    }
-}

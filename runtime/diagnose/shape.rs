@@ -226,6 +226,13 @@ pub(super) fn point_mass(m: f64, c: &Vector3<f64>) -> [f64; 10] {
     ]
 }
 
+/// Whether a payload's own moment of inertia `moment` about its COM can be
+/// a body's of mass `m` within `reach` of the link origin: not negative,
+/// and at most a thin shell's of that radius (2/3 m r^2).
+pub(super) fn plausible_moment(moment: f64, m: f64, reach: f64) -> bool {
+    (0.0..=2.0 / 3.0 * m * reach * reach).contains(&moment)
+}
+
 /// Whether standard parameters (m, m*c, inertia about the origin in the
 /// order of [`point_mass`]) are those of a physical body: the pseudo-inertia
 /// [[tr(I)/2 E - I, h], [h^T, m]] is positive semi-definite (Wensing, Kim
@@ -272,6 +279,16 @@ pub(super) fn pseudo_inertia_margin(p: &[f64; 10]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sphere's moment is a payload's; a negative one, or one larger than
+    /// a body within reach can have, is not.
+    #[test]
+    fn a_payload_moment_is_a_body_within_reach() {
+        let sphere = 0.4 * 1.5 * 0.04 * 0.04;
+        assert!(plausible_moment(sphere, 1.5, 1.0));
+        assert!(!plausible_moment(-1e-4, 1.5, 1.0));
+        assert!(!plausible_moment(2.0, 1.5, 1.0));
+    }
 
     /// A solid box's standard parameters about its centre, offset to `c`.
     fn box_at(m: f64, sides: [f64; 3], c: [f64; 3]) -> [f64; 10] {
