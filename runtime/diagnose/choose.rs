@@ -116,6 +116,7 @@ pub(super) fn choose(
         settings,
     );
     dry::settle_by_rest(data, &moments, candidates, &mut selected, &mut notes);
+    notes.extend(payload_body::stand_ins(&moments, candidates, &selected));
     Chosen {
         moments,
         selected,

@@ -9,7 +9,8 @@
 
 use super::admit::admits;
 use super::alternatives::NEAR;
-use super::candidate::{Candidate, Shape, label};
+use super::candidate::{Candidate, Shape, label, width};
+use super::fit::fit;
 use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
 use super::moments::Moments;
@@ -63,4 +64,59 @@ pub(super) fn give_inertia(
     }
     candidates[payload] = point;
     None
+}
+
+/// Notes on the armatures named beside a point-mass payload (its own
+/// moment not determined by these data) that are no larger than a ball's
+/// of the payload's mass reaching its COM: on the joints that turn it, a
+/// carried body's inertia about its COM acts much like an armature, so
+/// such an armature may be that inertia.
+pub(super) fn stand_ins(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<String> {
+    let is_point = |c: &Candidate| {
+        c.kind == Kind::Payload
+            && matches!(
+                c.shape,
+                Shape::Body {
+                    own_inertia: false,
+                    ..
+                }
+            )
+    };
+    if !selected.iter().any(|&c| is_point(&candidates[c])) {
+        return Vec::new();
+    }
+    let Some(full) = fit(m, candidates, selected, |_| true) else {
+        return Vec::new();
+    };
+    let mut at = 0;
+    let mut payload = None;
+    let mut armatures = Vec::new();
+    for &c in selected {
+        if is_point(&candidates[c]) {
+            payload = Some(&full.theta.as_slice()[at..at + 4]);
+        } else if candidates[c].kind == Kind::Armature {
+            armatures.push((c, full.theta[at]));
+        }
+        at += width(&candidates[c]);
+    }
+    let Some(&[mass, x, y, z]) = payload else {
+        return Vec::new();
+    };
+    let distance = (x * x + y * y + z * z).sqrt();
+    let ball = 0.4 * mass * distance * distance;
+    armatures
+        .into_iter()
+        .filter(|&(_, inertia)| inertia > 0.0 && inertia <= ball)
+        .map(|(c, inertia)| {
+            format!(
+                "{}: {inertia:.2e} kg m^2, named beside a point-mass payload of {mass:.3} kg: a \
+                 carried body's own inertia about its centre of mass acts on the joints that turn \
+                 it much like an armature (a ball of that mass reaching the payload's COM, \
+                 {distance:.3} m out, has up to {ball:.2e} kg m^2), and these data do not \
+                 determine a moment of the payload's own; if the arm carries a body rather than a \
+                 point, this armature may be that inertia",
+                label(&candidates[c])
+            )
+        })
+        .collect()
 }
