@@ -1,18 +1,15 @@
 //! Whether a fitted candidate may be named: its parameters significant
-//! (held-out and jackknife standard errors, a higher bar for shapes chosen
-//! among many) and physical (a sign, size or reach a real effect can have;
+//! ([`super::significance`]) and physical (a sign, size or reach a real effect can have;
 //! otherwise a note says what the data show instead).
 
-use nalgebra::{DVector, Vector3};
-
 use super::candidate::{Candidate, Shape, width};
-use super::fit::{Fit, fit};
+use super::fit::fit;
 use super::gain::Gain;
 use super::kind::Kind;
 use super::moments::Moments;
 use super::shape::plausible_moment;
+use super::significance::significant;
 use super::stacked::EXTENT_MARGIN;
-use super::uncertainty::{fit_robust, robust_quantity};
 use super::whole::{PHYSICAL_LOSS, com_distance, named_within};
 
 /// A link's fitted mass beyond this factor of its modelled mass (either
@@ -107,12 +104,23 @@ pub(super) fn physical(
         Kind::Payload => {
             let com = &values[1..4];
             let distance = com.iter().map(|c| c * c).sum::<f64>().sqrt();
-            if let Shape::Body {
-                own_inertia: true, ..
-            } = candidate.shape
-                && distance <= reach
-                && !plausible_moment(values[4], value, reach)
-            {
+            if distance > reach {
+                return Err(format!(
+                    "{at}: the data fit a mass of only {value:.4} kg with its centre of mass at \
+                     [{:.3}, {:.3}, {:.3}] m, {distance:.2} m away, beyond the arm's reach \
+                     ({reach:.2} m): a first-moment change, i.e. an inertial error of the last \
+                     link, not a payload; not named (it {cut})",
+                    com[0], com[1], com[2]
+                ));
+            }
+            let own = matches!(
+                candidate.shape,
+                Shape::Body {
+                    own_inertia: true,
+                    ..
+                }
+            );
+            if own && !plausible_moment(values[4], value, reach) {
                 return Err(format!(
                     "{at}: the data fit the payload a moment of inertia about its centre of mass \
                      of {:.3e} kg m^2, not that of a {value:.3} kg body within the arm's reach \
@@ -120,16 +128,7 @@ pub(super) fn physical(
                     values[4]
                 ));
             }
-            if distance <= reach {
-                return Ok(());
-            }
-            return Err(format!(
-                "{at}: the data fit a mass of only {value:.4} kg with its centre of mass at \
-                 [{:.3}, {:.3}, {:.3}] m, {distance:.2} m away, beyond the arm's reach \
-                 ({reach:.2} m): a first-moment change, i.e. an inertial error of the last link, \
-                 not a payload; not named (it {cut})",
-                com[0], com[1], com[2]
-            ));
+            return Ok(());
         }
         _ => return Ok(()),
     };
@@ -385,92 +384,11 @@ fn plausible_data_effect(
     ))
 }
 
-/// The fitted parameters of the last candidate of `trial` when it is
-/// significant: every parameter of a joint effect; a payload's mass (its COM
-/// components may be zero); for an inertial error, a change of the mass or
-/// of some COM component from the model's. Each |t| uses the larger of the
-/// least-squares and the jackknife standard error, so a parameter that
-/// swings from trajectory to trajectory is not significant however many
-/// correlated samples pin it down within each.
-pub(super) fn significant(
-    m: &Moments,
-    candidates: &[Candidate],
-    trial: &[usize],
-    full: &Fit,
-    min_t: f64,
-) -> Option<Vec<f64>> {
-    let (_, se) = fit_robust(m, candidates, trial)?;
-    let theta = &full.theta;
-    let added = *trial.last()?;
-    let offset: usize = trial[..trial.len() - 1]
-        .iter()
-        .map(|&c| width(&candidates[c]))
-        .sum();
-    let w = width(&candidates[added]);
-    let candidate = &candidates[added];
-    let min_t = searched_threshold(min_t, candidate.searched);
-    let t = |k: usize, reference: f64| (theta[offset + k] - reference).abs() / se[offset + k];
-    let ok = match (&candidate.kind, &candidate.shape) {
-        // A payload's mass, and its own moment of inertia where it has one.
-        (
-            Kind::Payload,
-            Shape::Body {
-                own_inertia: true, ..
-            },
-        ) => t(0, 0.0) > min_t && t(4, 0.0) > min_t,
-        (Kind::Payload, _) => t(0, 0.0) > min_t,
-        // A tilt may be about one axis only, a ripple's phase anything; a
-        // spring's constant (its rest angle times its stiffness) may well
-        // be zero.
-        (Kind::GravityDirection | Kind::TorqueRipple, _) => (0..w).any(|k| t(k, 0.0) > min_t),
-        (Kind::JointSpring, _) => t(0, 0.0) > min_t,
-        (
-            Kind::InertialError,
-            Shape::Body {
-                base_mass,
-                base_moment,
-                ..
-            },
-        ) => {
-            let com = if *base_mass > 0.0 {
-                base_moment / *base_mass
-            } else {
-                Vector3::zeros()
-            };
-            let nominal = [*base_mass, com.x, com.y, com.z];
-            // Mass and COM may trade against each other (a link whose mass
-            // acts only through second moments) while their product, the
-            // first moment, is well determined: a change of either counts.
-            let moment = |p: &DVector<f64>| {
-                let at = p.rows(offset, 4);
-                DVector::from_fn(3, |i, _| at[0] * at[i + 1] - base_moment[i])
-            };
-            let (change, change_se) = robust_quantity(m, candidates, trial, full, moment);
-            (0..4).any(|k| t(k, nominal[k]) > min_t)
-                || (0..3).any(|i| change[i].abs() > min_t * change_se[i])
-        }
-        // Some combination of the link's parameters changed.
-        (Kind::InertialError, Shape::Whole { .. }) => (0..w).any(|k| t(k, 0.0) > min_t),
-        (Kind::InertialError, Shape::Moment { base_moment, .. }) => {
-            (0..3).any(|k| t(k, base_moment[k]) > min_t)
-        }
-        _ => (0..w).all(|k| t(k, 0.0) > min_t),
-    };
-    ok.then(|| theta.rows(offset, w).iter().copied().collect())
-}
-
-/// The |t| a candidate chosen among `searched` column shapes must pass:
-/// sqrt(min_t^2 + 2 ln searched), close to a Bonferroni correction of the
-/// normal tail (3 -> 4.0 for 50 shapes), so the best of many shapes fitted
-/// to noise is not named.
-pub(super) fn searched_threshold(min_t: f64, searched: usize) -> f64 {
-    (min_t * min_t + 2.0 * (searched.max(1) as f64).ln()).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::diagnose::candidate::Shape;
+    use nalgebra::{DVector, Vector3};
 
     fn candidate(kind: Kind, joint: Option<usize>) -> Candidate {
         Candidate {

@@ -14,7 +14,7 @@
 //! |t|, physical, the joint's levels kept, and its held-out error lower in
 //! more than half of the segments (a consistent cut, not one segment's).
 
-use super::admit::{levels_hold, physical, significant};
+use super::admit::{levels_hold, physical};
 use super::candidate::{Candidate, label, width};
 use super::fit::{fit, identifiability};
 use super::gain::{Gain, relative_gain};
@@ -22,6 +22,7 @@ use super::heldout::{Scoring, cv_sse_by_group};
 use super::kind::Kind;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
+use super::significance::significant;
 
 /// Adds to `selected` the viscous friction of every joint with named
 /// Coulomb friction and no viscous friction, where it holds (see the

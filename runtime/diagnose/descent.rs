@@ -6,7 +6,7 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::candidate::{Candidate, Shape, width};
-use super::shape::{ISOTROPIC, point_mass};
+use super::shape::point_mass;
 use super::solve::{SquareRoot, pseudo_solve};
 
 /// Most steps of one descent. Converged descents take a handful; the cap
@@ -95,22 +95,12 @@ fn project_masses(
     let mut bodies = Vec::new();
     let (mut row, mut col) = (0, 0);
     for &c in selected {
-        if let Shape::Body {
-            offset,
-            own_inertia,
-            ..
-        } = &candidates[c].shape
-        {
+        if let Shape::Body { .. } = &candidates[c].shape {
             let com = Vector3::new(theta[col + 1], theta[col + 2], theta[col + 3]);
-            // Everything but the mass term is held: the offset, and a
-            // payload's own inertia.
-            let mut rest = *offset;
-            if *own_inertia {
-                for k in ISOTROPIC {
-                    rest[k] += theta[col + 4];
-                }
-            }
-            bodies.push((row, col, point_mass(1.0, &com), rest));
+            // Everything but the mass term is held.
+            let w = width(&candidates[c]);
+            let held = candidates[c].shape.held(&theta.as_slice()[col..col + w]);
+            bodies.push((row, col, point_mass(1.0, &com), held));
         }
         row += candidates[c].columns.len();
         col += width(&candidates[c]);
@@ -121,9 +111,9 @@ fn project_masses(
     let (coefficients, _) = coefficients(candidates, selected, theta);
     let mut held = coefficients;
     let mut units = DMatrix::zeros(held.len(), bodies.len());
-    for (k, (row, _, unit, rest)) in bodies.iter().enumerate() {
+    for (k, (row, _, unit, held_terms)) in bodies.iter().enumerate() {
         for i in 0..10 {
-            held[row + i] = rest[i];
+            held[row + i] = held_terms[i];
             units[(row + i, k)] = unit[i];
         }
     }

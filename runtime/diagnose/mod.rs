@@ -114,6 +114,7 @@ mod search;
 mod select;
 mod settings;
 mod shape;
+mod significance;
 mod smooth;
 mod solve;
 mod stacked;

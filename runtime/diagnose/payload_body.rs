@@ -32,10 +32,7 @@ pub(super) fn give_inertia(
     selected: &[usize],
     settings: Settings,
 ) -> Option<String> {
-    let payload = candidates.iter().position(|c| {
-        c.kind == Kind::Payload
-            && matches!(c.shape, Shape::Body { own_inertia, .. } if !own_inertia)
-    })?;
+    let payload = candidates.iter().position(point_payload)?;
     let at = selected.iter().position(|&c| {
         c == payload
             || (candidates[c].kind == Kind::InertialError
@@ -72,17 +69,7 @@ pub(super) fn give_inertia(
 /// carried body's inertia about its COM acts much like an armature, so
 /// such an armature may be that inertia.
 pub(super) fn stand_ins(m: &Moments, candidates: &[Candidate], selected: &[usize]) -> Vec<String> {
-    let is_point = |c: &Candidate| {
-        c.kind == Kind::Payload
-            && matches!(
-                c.shape,
-                Shape::Body {
-                    own_inertia: false,
-                    ..
-                }
-            )
-    };
-    if !selected.iter().any(|&c| is_point(&candidates[c])) {
+    if !selected.iter().any(|&c| point_payload(&candidates[c])) {
         return Vec::new();
     }
     let Some(full) = fit(m, candidates, selected, |_| true) else {
@@ -92,7 +79,7 @@ pub(super) fn stand_ins(m: &Moments, candidates: &[Candidate], selected: &[usize
     let mut payload = None;
     let mut armatures = Vec::new();
     for &c in selected {
-        if is_point(&candidates[c]) {
+        if point_payload(&candidates[c]) {
             payload = Some(&full.theta.as_slice()[at..at + 4]);
         } else if candidates[c].kind == Kind::Armature {
             armatures.push((c, full.theta[at]));
@@ -119,4 +106,16 @@ pub(super) fn stand_ins(m: &Moments, candidates: &[Candidate], selected: &[usize
             )
         })
         .collect()
+}
+
+/// Whether a candidate is a payload without a moment of its own.
+fn point_payload(c: &Candidate) -> bool {
+    c.kind == Kind::Payload
+        && matches!(
+            c.shape,
+            Shape::Body {
+                own_inertia: false,
+                ..
+            }
+        )
 }

@@ -16,7 +16,7 @@
 //! sign and the reported values). The refitted Coulomb and viscous values
 //! of the joint replace the motion stage's in the report.
 
-use super::admit::{physical, searched_threshold, significant};
+use super::admit::physical;
 use super::band::{Needs, pipeline};
 use super::candidate::{Candidate, Shape, label, width};
 use super::data::stack;
@@ -29,6 +29,7 @@ use super::moments::Moments;
 use super::report::effect;
 use super::rows::Rows;
 use super::settings::Settings;
+use super::significance::{searched_threshold, significant};
 use super::stacked::Stacked;
 use super::uncertainty::fit_robust;
 use crate::dynamics::Dynamics;

@@ -2,7 +2,7 @@
 //! checks and [`super::admit`]'s significance and physical-sign checks, and
 //! a backward prune.
 
-use super::admit::{MASS_FACTOR, admits, levels_hold, physical, searched_threshold, significant};
+use super::admit::{MASS_FACTOR, admits, levels_hold, physical};
 use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, runners_up};
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::companion::complete_friction;
@@ -12,6 +12,7 @@ use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
+use super::significance::{searched_threshold, significant};
 use super::solve::pseudo_solve;
 use crate::parallel::map_in_order;
 

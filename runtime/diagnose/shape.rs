@@ -93,14 +93,11 @@ impl Shape {
                     DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, -a / along, -b / along]);
                 (vec![a, b, along - g], jacobian)
             }
-            Shape::Body {
-                offset,
-                own_inertia,
-                ..
-            } => {
+            Shape::Body { own_inertia, .. } => {
                 let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
                 let unit = point_mass(1.0, &c);
-                let mut coefficients: Vec<f64> = (0..10).map(|k| m * unit[k] + offset[k]).collect();
+                let held = self.held(theta);
+                let coefficients = (0..10).map(|k| m * unit[k] + held[k]).collect();
                 let mut jacobian = DMatrix::zeros(10, theta.len());
                 for k in 0..10 {
                     jacobian[(k, 0)] = unit[k];
@@ -112,7 +109,6 @@ impl Shape {
                 }
                 if *own_inertia {
                     for k in ISOTROPIC {
-                        coefficients[k] += theta[4];
                         jacobian[(k, 4)] = 1.0;
                     }
                 }
@@ -135,6 +131,27 @@ impl Shape {
 }
 
 impl Shape {
+    /// A body's coefficients other than its mass term m * point_mass(1, c)
+    /// at theta: the offset, and a payload's own moment on the diagonal.
+    /// Zero for the other shapes.
+    pub(super) fn held(&self, theta: &[f64]) -> [f64; 10] {
+        let Shape::Body {
+            offset,
+            own_inertia,
+            ..
+        } = self
+        else {
+            return [0.0; 10];
+        };
+        let mut held = *offset;
+        if *own_inertia {
+            for k in ISOTROPIC {
+                held[k] += theta[4];
+            }
+        }
+        held
+    }
+
     /// The sum over the coefficients of `weights[k]` times coefficient k's
     /// Hessian in theta: what the Gauss-Newton Hessian leaves out. With it
     /// the descent takes exact Newton steps, which cross the valley along
@@ -185,7 +202,7 @@ impl Shape {
 }
 
 /// The diagonal inertia entries (ixx, iyy, izz) among the ten.
-pub(super) const ISOTROPIC: [usize; 3] = [4, 6, 9];
+const ISOTROPIC: [usize; 3] = [4, 6, 9];
 
 /// d point_mass(1, c) / dc_a, row a.
 fn unit_partials(c: &Vector3<f64>) -> [[f64; 10]; 3] {

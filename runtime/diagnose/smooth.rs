@@ -12,7 +12,6 @@
 
 use nalgebra::DVector;
 
-use super::admit::significant;
 use super::candidate::{Candidate, label, on_joint};
 use super::fit::fit;
 use super::gain::relative_gain;
@@ -20,6 +19,7 @@ use super::heldout::{Scoring, cv_mse, worst_rise};
 use super::kind::Kind;
 use super::moments::Moments;
 use super::settings::Settings;
+use super::significance::significant;
 use super::stacked::Stacked;
 
 /// The generic features ([`super::stacked::GENERIC_FEATURES`]) that shape a

@@ -6,7 +6,7 @@
 
 use nalgebra::DVector;
 
-use super::admit::{levels_hold, physical, significant};
+use super::admit::{levels_hold, physical};
 use super::candidate::{Candidate, width};
 use super::diagnosis::Effect;
 use super::fit::{fit, identifiability};
@@ -16,6 +16,7 @@ use super::moments::Moments;
 use super::report::effect;
 use super::select::admissible;
 use super::settings::{COLLINEAR, Settings};
+use super::significance::significant;
 use super::uncertainty::fit_robust;
 use crate::parallel::map_in_order;
 
