@@ -73,7 +73,7 @@ def evaluate_mse(binary, toml, files, corrections=()):
 
 def printed_corrections(report: str) -> list:
     """The `--torque-scale J=S` and `--torque-delay S` a diagnosis printed."""
-    return [a for c in re.findall(r"--torque-(?:scale|delay) \S+", report) for a in c.split()]
+    return [a for c in re.findall(r'--torque-(?:scale|delay) [^\s"]+', report) for a in c.split()]
 
 
 class Filtered:

@@ -349,6 +349,7 @@ fn payload_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candi
             base_mass: 0.0,
             base_moment: Vector3::zeros(),
             own_inertia: false,
+            held_com: None,
         },
         ..link_candidate(k, link, columns)
     }
@@ -381,6 +382,7 @@ fn link_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidat
             base_mass: mass,
             base_moment: moment,
             own_inertia: false,
+            held_com: None,
         },
         settings: Vec::new(),
         searched: 1,

@@ -11,7 +11,7 @@ use super::moments::Moments;
 use super::select::{body_identifiable, mass_identifiable, select};
 use super::settings::Settings;
 use super::stacked::Stacked;
-use super::{companion, dry, held, heldout, payload_body, report, smooth, supported};
+use super::{com_hold, companion, dry, held, heldout, payload_body, report, smooth, supported};
 
 /// What the data name, and what the report needs of how.
 pub(super) struct Chosen {
@@ -101,12 +101,15 @@ pub(super) fn choose(
     drop_unhelpful(&moments, candidates, &mut selected, &mut notes);
     // The last selection judged is the final one: its supported effects
     // are the report's.
-    let mut supported = Vec::new();
-    held::drop_unheld(&moments, candidates, &mut selected, &mut notes, |s| {
-        supported = supported::supported(&moments, data.dof, candidates, s, settings);
-        let timing = supported::timing_shift(&moments, candidates, s);
-        held::bias_elsewhere(candidates, s, &supported, timing)
-    });
+    let mut supported = drop_unheld(
+        &moments,
+        data.dof,
+        candidates,
+        &mut selected,
+        &mut notes,
+        settings,
+    );
+    let judged = selected.len();
     smooth::drop_friction_traces(
         data,
         &moments,
@@ -116,6 +119,34 @@ pub(super) fn choose(
         settings,
     );
     dry::settle_by_rest(data, &moments, candidates, &mut selected, &mut notes);
+    if selected.len() < judged {
+        // An effect named beside one dropped here may have fitted its
+        // leftover (viscous friction on a joint at the noise floor, named
+        // after a torque delay that stood in for Stribeck friction).
+        supported = drop_unheld(
+            &moments,
+            data.dof,
+            candidates,
+            &mut selected,
+            &mut notes,
+            settings,
+        );
+    }
+    let parameters = selected.iter().map(|&c| width(&candidates[c])).sum();
+    let timing = supported::timing_shift(&moments, candidates, &selected);
+    let bias = supported::bias(&supported, timing, parameters);
+    let held = com_hold::hold_undetermined(
+        &moments,
+        data.dof,
+        candidates,
+        &selected,
+        &bias,
+        settings.min_gain,
+    );
+    if !held.is_empty() {
+        notes.extend(held);
+        supported = supported::supported(&moments, data.dof, candidates, &selected, settings);
+    }
     notes.extend(payload_body::stand_ins(&moments, candidates, &selected));
     Chosen {
         moments,
@@ -200,6 +231,25 @@ fn helps_the_rest(
 ) -> bool {
     let (with, without) = heldout::with_and_without(m, candidates, selected, position);
     without > with
+}
+
+/// [`held::drop_unheld`] with the bias of the supported effects beside
+/// each selection judged; the supported effects of the last.
+fn drop_unheld(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    selected: &mut Vec<usize>,
+    notes: &mut Vec<String>,
+    settings: Settings,
+) -> Vec<supported::Supported> {
+    let mut supported = Vec::new();
+    held::drop_unheld(m, candidates, selected, notes, |s| {
+        supported = supported::supported(m, dof, candidates, s, settings);
+        let timing = supported::timing_shift(m, candidates, s);
+        held::bias_elsewhere(candidates, s, &supported, timing)
+    });
+    supported
 }
 
 /// Fits the first moment alone (the mass held as modelled) for these body

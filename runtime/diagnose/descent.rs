@@ -166,7 +166,12 @@ fn newton_step(
     gradient: &DVector<f64>,
     lambda: f64,
 ) -> DVector<f64> {
-    let damping = DMatrix::from_diagonal(&(gauss_newton.diagonal() * lambda));
+    // A parameter nothing depends on (a held COM axis) has no gradient:
+    // a unit diagonal keeps its step zero and the Hessian invertible.
+    let damping = DMatrix::from_diagonal(&gauss_newton.diagonal().map(|d| match d {
+        0.0 => 1.0,
+        d => d * lambda,
+    }));
     let exact = gauss_newton + curvature(candidates, selected, theta, excess) + &damping;
     if let Some(cholesky) = exact.cholesky() {
         return cholesky.solve(gradient);
@@ -235,6 +240,7 @@ mod tests {
                 base_mass: m0,
                 base_moment: c0 * m0,
                 own_inertia: false,
+                held_com: None,
             },
             names: vec!["mass", "cx", "cy", "cz"],
             columns,

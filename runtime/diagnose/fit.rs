@@ -9,6 +9,7 @@ use super::candidate::{Candidate, Shape, columns_of, width};
 use super::descent::{coefficients, levenberg_marquardt};
 use super::moments::Moments;
 use super::settings::COLLINEAR;
+use super::shape::holds;
 use super::solve::{SquareRoot, pseudo_solve, pseudo_solve_columns};
 
 /// A least-squares fit of some candidates.
@@ -141,15 +142,21 @@ fn starts(
                 base_mass,
                 base_moment,
                 own_inertia,
+                held_com,
                 ..
             } => {
                 let mass = base_mass + x0[at];
                 let moment = base_moment + Vector3::new(x0[at + 1], x0[at + 2], x0[at + 3]);
-                let com = if mass.abs() > 1e-9 {
+                let mut com = if mass.abs() > 1e-9 {
                     moment / mass
                 } else {
                     Vector3::zeros()
                 };
+                // A held axis stays where the model has it (the descent
+                // never moves it).
+                for a in (0..3).filter(|&a| holds(held_com, a)) {
+                    com[a] = base_moment[a] / base_mass;
+                }
                 theta.extend([mass, com.x, com.y, com.z]);
                 if *own_inertia {
                     theta.push(0.0);

@@ -45,24 +45,37 @@ pub(super) fn identifiability(
     else {
         return Identifiability::default();
     };
+    // Each fitted parameter (a held COM axis is not one: no information),
+    // its candidate and its index among the candidate's.
+    let fitted: Vec<(usize, usize)> = selected
+        .iter()
+        .flat_map(|&c| (0..width(&candidates[c])).map(move |k| (c, k)))
+        .collect();
+    let kept: Vec<usize> = (0..fitted.len())
+        .filter(|&i| candidates[fitted[i].0].shape.fitted(fitted[i].1))
+        .collect();
     // A whole body's combinations correlate among themselves by
     // construction of the other effects' fit; only their link is a name.
-    let owner: Vec<Option<usize>> = selected
+    let owner: Vec<Option<usize>> = kept
         .iter()
-        .flat_map(|&c| {
-            let whole = matches!(candidates[c].shape, Shape::Whole { .. });
-            (0..width(&candidates[c])).map(move |_| whole.then_some(c))
+        .map(|&i| {
+            let c = fitted[i].0;
+            matches!(candidates[c].shape, Shape::Whole { .. }).then_some(c)
         })
         .collect();
-    let names: Vec<String> = selected
+    let names: Vec<String> = kept
         .iter()
-        .flat_map(|&c| {
-            let candidate = &candidates[c];
-            let names = parameter_names(candidate);
-            (0..width(candidate)).map(move |k| format!("{}: {}", label(candidate), names[k]))
+        .map(|&i| {
+            let (c, k) = fitted[i];
+            format!(
+                "{}: {}",
+                label(&candidates[c]),
+                parameter_names(&candidates[c])[k]
+            )
         })
         .collect();
-    let info = &fit.information;
+    let info = fit.information.select_rows(&kept).select_columns(&kept);
+    let info = &info;
     let k = info.nrows();
     let d: Vec<f64> = (0..k)
         .map(|i| info[(i, i)].max(f64::MIN_POSITIVE).sqrt())

@@ -86,6 +86,7 @@ pub mod apply;
 mod band;
 mod candidate;
 mod choose;
+mod com_hold;
 mod companion;
 pub mod data;
 mod descent;

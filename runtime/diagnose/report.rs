@@ -11,6 +11,7 @@ use super::heldout::cv_mse_per_joint;
 use super::kind::Kind;
 use super::moments::Moments;
 use super::shape::physically_consistent;
+use super::shape::{holds, reported_interval};
 use super::stacked::Stacked;
 use super::uncertainty::{fit_robust, rest_shift, widened};
 
@@ -139,28 +140,38 @@ pub(super) fn effect(
     if let Shape::Body {
         base_mass,
         base_moment,
+        held_com,
         ..
     } = &candidate.shape
     {
-        let (m, dm) = values[0];
+        let intervals: [(f64, f64); 4] = std::array::from_fn(|k| {
+            let (value, half) = values[k];
+            reported_interval((value - half, value + half), held_com, k)
+        });
+        let m = values[0].0;
+        let (low, high) = intervals[0];
         parameters.insert("mass".into(), json!(m));
-        ci95.insert("mass".into(), json!([m - dm, m + dm]));
-        if dm > MASS_RESOLUTION * m.abs() {
+        ci95.insert("mass".into(), json!([low, high]));
+        if (high - low) / 2.0 > MASS_RESOLUTION * m.abs() {
             notes.push(format!(
                 "{}: the mass is poorly determined by these data (fit {m:.3} kg, 95% CI \
-                 {:.3} .. {:.3} kg, more than {:.0}% either way): treat it as unknown within that \
-                 interval",
+                 {low:.3} .. {high:.3} kg, more than {:.0}% either way): treat it as unknown \
+                 within that interval",
                 label(candidate),
-                m - dm,
-                m + dm,
                 100.0 * MASS_RESOLUTION
             ));
         }
         let mut com = Vec::new();
         let mut interval = Vec::new();
-        for (axis, &(c, dc)) in ["x", "y", "z"].iter().zip(&values[1..]) {
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let c = values[a + 1].0;
+            let (low, high) = intervals[a + 1];
             com.push(json!(c));
-            interval.push(json!([c - dc, c + dc]));
+            interval.push(json!([low, high]));
+            let dc = (high - low) / 2.0;
+            if holds(held_com, a) {
+                continue;
+            }
             if dc > resolution {
                 notes.push(format!(
                     "{}: the COM's {axis} component is poorly determined by these data \

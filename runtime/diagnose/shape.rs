@@ -32,11 +32,16 @@ pub(super) enum Shape {
     /// (mass, first moment) the linear start adds its fit to. With
     /// `own_inertia`, theta has a fifth entry j: a payload's own moment of
     /// inertia about its COM, the same about every axis (j E added).
+    /// `held_com`: COM axes held at the modelled COM (the data do not
+    /// determine a change along them, see [`super::com_hold`]): nothing
+    /// depends on a held entry of theta (its Jacobian column is zero), so
+    /// the descent never moves it from where the start puts it.
     Body {
         offset: [f64; 10],
         base_mass: f64,
         base_moment: Vector3<f64>,
         own_inertia: bool,
+        held_com: Option<HeldCom>,
     },
     /// theta = the first moment h = m c of a link whose mass the data cannot
     /// identify (see [`mass_identifiable`]), the mass held at the model's
@@ -56,6 +61,37 @@ pub(super) enum Shape {
         basis: DMatrix<f64>,
         gram: DMatrix<f64>,
     },
+}
+
+/// A body's COM axes held at the modelled COM, and the 95% intervals of
+/// the fit that left them free.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct HeldCom {
+    pub(super) axes: [bool; 3],
+    /// (mass, cx, cy, cz): holding axes the data do not determine does not
+    /// make the rest better known, so the report's intervals are at least
+    /// these.
+    pub(super) free: [(f64, f64); 4],
+}
+
+/// Whether COM axis `a` is held.
+pub(super) fn holds(held: &Option<HeldCom>, a: usize) -> bool {
+    held.is_some_and(|h| h.axes[a])
+}
+
+/// The reported 95% interval of a body's parameter `k` (mass, cx, cy, cz)
+/// whose fit gives `fitted`: a held axis's is the free fit's (which holds
+/// the modelled value kept), the others' at least the free fit's.
+pub(super) fn reported_interval(
+    fitted: (f64, f64),
+    held: &Option<HeldCom>,
+    k: usize,
+) -> (f64, f64) {
+    match held {
+        None => fitted,
+        Some(h) if k > 0 && h.axes[k - 1] => h.free[k],
+        Some(h) => (fitted.0.min(h.free[k].0), fitted.1.max(h.free[k].1)),
+    }
 }
 
 impl Shape {
@@ -93,8 +129,12 @@ impl Shape {
                     DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, -a / along, -b / along]);
                 (vec![a, b, along - g], jacobian)
             }
-            Shape::Body { own_inertia, .. } => {
-                let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
+            Shape::Body {
+                own_inertia,
+                held_com,
+                ..
+            } => {
+                let (m, c) = (theta[0], self.body_com(theta));
                 let unit = point_mass(1.0, &c);
                 let held = self.held(theta);
                 let coefficients = (0..10).map(|k| m * unit[k] + held[k]).collect();
@@ -103,6 +143,9 @@ impl Shape {
                     jacobian[(k, 0)] = unit[k];
                 }
                 for (a, row) in unit_partials(&c).iter().enumerate() {
+                    if holds(held_com, a) {
+                        continue;
+                    }
                     for k in 0..10 {
                         jacobian[(k, a + 1)] = m * row[k];
                     }
@@ -131,6 +174,32 @@ impl Shape {
 }
 
 impl Shape {
+    /// Whether parameter `k` is fitted (not a held COM axis).
+    pub(super) fn fitted(&self, k: usize) -> bool {
+        match self {
+            Shape::Body { held_com, .. } => !(1..4).contains(&k) || !holds(held_com, k - 1),
+            _ => true,
+        }
+    }
+
+    /// A body's COM at theta: a held axis is the model's whatever theta
+    /// holds there (nothing depends on it).
+    fn body_com(&self, theta: &[f64]) -> Vector3<f64> {
+        let mut com = Vector3::new(theta[1], theta[2], theta[3]);
+        if let Shape::Body {
+            base_mass,
+            base_moment,
+            held_com,
+            ..
+        } = self
+        {
+            for a in (0..3).filter(|&a| holds(held_com, a)) {
+                com[a] = base_moment[a] / base_mass;
+            }
+        }
+        com
+    }
+
     /// A body's coefficients other than its mass term m * point_mass(1, c)
     /// at theta: the offset, and a payload's own moment on the diagonal.
     /// Zero for the other shapes.
@@ -178,16 +247,22 @@ impl Shape {
                     ],
                 )
             }
-            Shape::Body { .. } => {
-                // The payload's own inertia is linear: its rows stay zero.
-                let (m, c) = (theta[0], Vector3::new(theta[1], theta[2], theta[3]));
+            Shape::Body { held_com, .. } => {
+                // The payload's own inertia is linear, and nothing depends
+                // on a held COM axis: their rows stay zero.
+                let (m, c) = (theta[0], self.body_com(theta));
                 let second = unit_curvature(weights);
+                let free = |a: usize| !holds(held_com, a);
                 let mut h = DMatrix::zeros(theta.len(), theta.len());
-                for (a, row) in unit_partials(&c).iter().enumerate() {
+                for (a, row) in unit_partials(&c)
+                    .iter()
+                    .enumerate()
+                    .filter(|(a, _)| free(*a))
+                {
                     let cross: f64 = row.iter().zip(weights).map(|(d, w)| d * w).sum();
                     h[(0, a + 1)] = cross;
                     h[(a + 1, 0)] = cross;
-                    for b in 0..3 {
+                    for b in (0..3).filter(|&b| free(b)) {
                         h[(a + 1, b + 1)] = m * second[a][b];
                     }
                 }
@@ -377,9 +452,12 @@ mod curvature_tests {
             weights in prop::collection::vec(-3.0f64..3.0, 10),
         ) {
             let zero = [0.0; 10];
-            let body = Shape::Body { offset: zero, base_mass: m, base_moment: Vector3::zeros(), own_inertia: true };
+            let body = Shape::Body { offset: zero, base_mass: m, base_moment: Vector3::zeros(), own_inertia: true, held_com: None };
             let theta = [m, c[0], c[1], c[2], 0.01];
             prop_assert!(close(&body.curvature(&theta, &weights), &differenced(&body, &theta, &weights)));
+            let held_y = Shape::Body { offset: zero, base_mass: m, base_moment: Vector3::zeros(), own_inertia: false, held_com: Some(HeldCom { axes: [false, true, false], free: [(0.0, 1.0); 4] }) };
+            let theta = [m, c[0], c[1], c[2]];
+            prop_assert!(close(&held_y.curvature(&theta, &weights), &differenced(&held_y, &theta, &weights)));
             let moment = Shape::Moment { offset: zero, base_mass: m, base_moment: Vector3::zeros() };
             let h = [m * c[0], m * c[1], m * c[2]];
             prop_assert!(close(&moment.curvature(&h, &weights), &differenced(&moment, &h, &weights)));
