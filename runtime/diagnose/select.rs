@@ -87,11 +87,6 @@ pub(super) fn select(
     settings: Settings,
     withdrawn: &[usize],
 ) -> Selection {
-    let mut selected: Vec<usize> = Vec::new();
-    // Withdrawn candidates compete no more (see `choose`).
-    let mut refused: Vec<usize> = withdrawn.to_vec();
-    let mut notes = Vec::new();
-    let mut alternatives = Vec::new();
     let all: Vec<usize> = (0..candidates.len()).collect();
     let unidentifiable: Vec<usize> = map_in_order(&all, |&c| {
         fit(m, candidates, &[c], |_| true)
@@ -102,84 +97,59 @@ pub(super) fn select(
     .filter_map(|(refused, &c)| refused.then_some(c))
     .collect();
     let initial = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
-    let mut current = initial.clone();
-    loop {
-        let open: Vec<usize> = (0..candidates.len())
-            .filter(|c| {
-                !selected.contains(c)
-                    && !refused.contains(c)
-                    && !unidentifiable.contains(c)
-                    && admissible(candidates, *c, &selected)
-            })
-            .collect();
-        let scored = score(m, dof, candidates, &selected, &open, &current);
-        let best = scored
-            .iter()
-            .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
-            .map(|best| {
-                let is_link = |c: usize| candidates[c].link.is_some();
-                let broad = broadest(&scored, best, &current, &is_link);
-                fewer_parameters(candidates, &scored, broad)
-            })
-            .cloned();
-        let Some((c, gain, mse)) = best else { break };
-        let mut trial = selected.clone();
-        trial.push(c);
-        if gain.share < settings.min_gain {
-            break;
-        }
-        let Some(full) = fit(m, candidates, &trial, |_| true) else {
-            break;
-        };
-        let offset: usize = selected.iter().map(|&s| width(&candidates[s])).sum();
-        let w = width(&candidates[c]);
-        if identifiability(&full.information, offset..offset + w) < COLLINEAR {
-            notes.push(format!(
-                "{}: {} at this step, but its parameters are collinear with the effects \
-                 already named ({}); not named",
-                label(&candidates[c]),
-                gain.would_cut(),
-                selected
-                    .iter()
-                    .map(|&s| label(&candidates[s]))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ));
-            refused.push(c);
-            continue;
-        }
-        // A nonlinear candidate (a payload trading mass for lever arm) can
-        // win on fit yet leave its parameters undetermined: refuse it and let
-        // the others compete.
-        let Some(values) = significant(m, candidates, &trial, &full, settings.min_t) else {
-            notes.push(format!(
-                "{}: {} at this step, but its parameters are not significant (|t| <= {:.1}); \
-                 not named",
-                label(&candidates[c]),
-                gain.would_cut(),
-                searched_threshold(settings.min_t, candidates[c].searched)
-            ));
-            refused.push(c);
-            continue;
-        };
-        let plausible = physical(&candidates[c], &values, gain, settings.reach)
-            .and_then(|()| levels_hold(candidates, &trial, full.theta.as_slice()));
-        if let Err(note) = plausible {
-            notes.push(note);
-            refused.push(c);
-            continue;
-        }
-        alternatives.extend(runners_up(
-            m, candidates, &selected, c, gain, &mse, &initial, &scored, settings,
-        ));
-        selected = trial;
-        current = mse;
-        if complete_friction(m, dof, candidates, &mut selected, &mut notes, settings) {
-            current = cv_mse(m, dof, candidates, &selected, Scoring::Fitted);
-        }
+    let mut steps = Steps {
+        selected: Vec::new(),
+        // Withdrawn candidates compete no more (see `choose`).
+        refused: withdrawn.to_vec(),
+        notes: Vec::new(),
+        alternatives: Vec::new(),
+    };
+    forward(
+        m,
+        dof,
+        candidates,
+        settings,
+        &unidentifiable,
+        &initial,
+        &mut steps,
+    );
+    let dropped = prune(
+        m,
+        candidates,
+        &mut steps.selected,
+        &mut steps.notes,
+        settings,
+    );
+    if !dropped.is_empty() {
+        // What a dropped effect stood in for is left unexplained (a
+        // spring's constant that held a torque offset): selection goes on
+        // from the pruned effects, the dropped ones refused, once.
+        steps.refused.extend(dropped);
+        forward(
+            m,
+            dof,
+            candidates,
+            settings,
+            &unidentifiable,
+            &initial,
+            &mut steps,
+        );
+        let dropped = prune(
+            m,
+            candidates,
+            &mut steps.selected,
+            &mut steps.notes,
+            settings,
+        );
+        steps.refused.extend(dropped);
     }
-    let dropped = prune(m, candidates, &mut selected, &mut notes, settings);
-    refused.extend(dropped);
+    let Steps {
+        mut selected,
+        mut refused,
+        mut notes,
+        mut alternatives,
+    } = steps;
+    let current = cv_mse(m, dof, candidates, &selected, Scoring::Fitted);
     for &c in &unidentifiable {
         let mut trial = selected.clone();
         trial.push(c);
@@ -211,6 +181,120 @@ pub(super) fn select(
         notes,
         rejected: refused,
         alternatives,
+    }
+}
+
+/// What forward selection has decided so far.
+struct Steps {
+    selected: Vec<usize>,
+    refused: Vec<usize>,
+    notes: Vec<String>,
+    alternatives: Vec<Alternative>,
+}
+
+/// Forward steps from `steps.selected`: each adds the open candidate that
+/// lowers some joint's held-out MSE the most, while that cut reaches
+/// `min_gain` (`initial`: the held-out MSE before any effect).
+fn forward(
+    m: &Moments,
+    dof: usize,
+    candidates: &[Candidate],
+    settings: Settings,
+    unidentifiable: &[usize],
+    initial: &[f64],
+    steps: &mut Steps,
+) {
+    let mut current = cv_mse(m, dof, candidates, &steps.selected, Scoring::Fitted);
+    loop {
+        let open: Vec<usize> = (0..candidates.len())
+            .filter(|c| {
+                !steps.selected.contains(c)
+                    && !steps.refused.contains(c)
+                    && !unidentifiable.contains(c)
+                    && admissible(candidates, *c, &steps.selected)
+            })
+            .collect();
+        let scored = score(m, dof, candidates, &steps.selected, &open, &current);
+        let best = scored
+            .iter()
+            .max_by(|a, b| a.1.share.total_cmp(&b.1.share))
+            .map(|best| {
+                let is_link = |c: usize| candidates[c].link.is_some();
+                let broad = broadest(&scored, best, &current, &is_link);
+                fewer_parameters(candidates, &scored, broad)
+            })
+            .cloned();
+        let Some((c, gain, mse)) = best else { break };
+        let mut trial = steps.selected.clone();
+        trial.push(c);
+        if gain.share < settings.min_gain {
+            break;
+        }
+        let Some(full) = fit(m, candidates, &trial, |_| true) else {
+            break;
+        };
+        let offset: usize = steps.selected.iter().map(|&s| width(&candidates[s])).sum();
+        let w = width(&candidates[c]);
+        if identifiability(&full.information, offset..offset + w) < COLLINEAR {
+            steps.notes.push(format!(
+                "{}: {} at this step, but its parameters are collinear with the effects \
+                 already named ({}); not named",
+                label(&candidates[c]),
+                gain.would_cut(),
+                steps
+                    .selected
+                    .iter()
+                    .map(|&s| label(&candidates[s]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            steps.refused.push(c);
+            continue;
+        }
+        // A nonlinear candidate (a payload trading mass for lever arm) can
+        // win on fit yet leave its parameters undetermined: refuse it and let
+        // the others compete.
+        let Some(values) = significant(m, candidates, &trial, &full, settings.min_t) else {
+            steps.notes.push(format!(
+                "{}: {} at this step, but its parameters are not significant (|t| <= {:.1}); \
+                 not named",
+                label(&candidates[c]),
+                gain.would_cut(),
+                searched_threshold(settings.min_t, candidates[c].searched)
+            ));
+            steps.refused.push(c);
+            continue;
+        };
+        let plausible = physical(&candidates[c], &values, gain, settings.reach)
+            .and_then(|()| levels_hold(candidates, &trial, full.theta.as_slice()));
+        if let Err(note) = plausible {
+            steps.notes.push(note);
+            steps.refused.push(c);
+            continue;
+        }
+        steps.alternatives.extend(runners_up(
+            m,
+            candidates,
+            &steps.selected,
+            c,
+            gain,
+            &mse,
+            initial,
+            &scored,
+            settings,
+        ));
+        steps.selected = trial;
+        current = mse;
+        if complete_friction(
+            m,
+            dof,
+            candidates,
+            &mut steps.selected,
+            &mut steps.notes,
+            settings,
+        ) {
+            current = cv_mse(m, dof, candidates, &steps.selected, Scoring::Fitted);
+        }
     }
 }
 
