@@ -123,8 +123,10 @@ pub(super) fn select(
     if !dropped.is_empty() {
         // What a dropped effect stood in for is left unexplained (a
         // spring's constant that held a torque offset): selection goes on
-        // from the pruned effects, the dropped ones refused, once.
-        steps.refused.extend(dropped);
+        // once from the pruned effects, the first one dropped refused (it
+        // failed beside everything named; the others may have failed only
+        // once it was gone) and the refusals judged beside it judged again.
+        steps.refused = [withdrawn, &dropped[..1]].concat();
         forward(
             m,
             dof,
@@ -142,6 +144,8 @@ pub(super) fn select(
             settings,
         );
         steps.refused.extend(dropped);
+        let mut seen = std::collections::HashSet::new();
+        steps.notes.retain(|n| seen.insert(n.clone()));
     }
     let Steps {
         mut selected,
@@ -537,6 +541,40 @@ mod tests {
             candidate(Kind::ViscousFriction, qd),
         ];
         (data, candidates)
+    }
+
+    /// Residual 1 + 0.3 sin(2q): a spring (q and a constant) explains most
+    /// of it first, and once a torque scale's column sin(2q) is named its
+    /// stiffness is nothing and the prune drops it; the constant it held
+    /// is then named as the offset, which beside the spring was collinear.
+    #[test]
+    fn what_a_pruned_effect_held_is_named_after_it() {
+        let noise =
+            |q: f64, qd: f64| 0.002 * ((q * 12.9898 + qd * 78.233).sin() * 43758.5453).fract();
+        let (data, q, _) =
+            crate::diagnose::search::sweep(|q, qd| 1.0 + 0.3 * (2.0 * q).sin() + noise(q, qd));
+        let ones = nalgebra::DVector::from_element(q.len(), 1.0);
+        let spring = Candidate {
+            names: vec!["stiffness", "constant"],
+            columns: vec![q.clone(), ones.clone()],
+            ..candidate(Kind::JointSpring, ones.clone())
+        };
+        let candidates = vec![
+            spring,
+            candidate(Kind::TorqueOffset, ones),
+            candidate(Kind::TorqueScale, q.map(|q| (2.0 * q).sin())),
+        ];
+        let m = Moments::new(&data, &candidates);
+        let selection = select(&m, 1, &candidates, Settings::default(), &[]);
+        let mut selected = selection.selected.clone();
+        selected.sort();
+        assert_eq!(selected, vec![1, 2], "{:?}", selection.notes);
+        assert!(
+            selection
+                .notes
+                .iter()
+                .any(|n| n.contains("joint_spring") && n.contains("dropped"))
+        );
     }
 
     #[test]
