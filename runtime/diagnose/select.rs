@@ -104,29 +104,12 @@ pub(super) fn select(
         notes: Vec::new(),
         alternatives: Vec::new(),
     };
-    forward(
-        m,
-        dof,
-        candidates,
-        settings,
-        &unidentifiable,
-        &initial,
-        &mut steps,
-    );
-    let dropped = prune(
-        m,
-        candidates,
-        &mut steps.selected,
-        &mut steps.notes,
-        settings,
-    );
-    if !dropped.is_empty() {
-        // What a dropped effect stood in for is left unexplained (a
-        // spring's constant that held a torque offset): selection goes on
-        // once from the pruned effects, the first one dropped refused (it
-        // failed beside everything named; the others may have failed only
-        // once it was gone) and the refusals judged beside it judged again.
-        steps.refused = [withdrawn, &dropped[..1]].concat();
+    // What an effect the prune drops stood in for is left unexplained (a
+    // spring's constant that held a torque offset): selection goes on once
+    // from the pruned effects, the first one dropped refused (it failed
+    // beside everything named; the others may have failed only once it was
+    // gone) and the refusals judged beside it judged again.
+    for round in 0..2 {
         forward(
             m,
             dof,
@@ -143,10 +126,14 @@ pub(super) fn select(
             &mut steps.notes,
             settings,
         );
-        steps.refused.extend(dropped);
-        let mut seen = std::collections::HashSet::new();
-        steps.notes.retain(|n| seen.insert(n.clone()));
+        if round == 1 || dropped.is_empty() {
+            steps.refused.extend(dropped);
+            break;
+        }
+        steps.refused = [withdrawn, &dropped[..1]].concat();
     }
+    let mut seen = std::collections::HashSet::new();
+    steps.notes.retain(|n| seen.insert(n.clone()));
     let Steps {
         mut selected,
         mut refused,
