@@ -155,6 +155,12 @@ fn panda_functions(c: &mut Criterion) {
         oracle::rnea(&model, q, qd, qdd)[0]
     });
     each("oracle crba", &|[q, ..]| oracle::crba(&model, q)[(0, 0)]);
+    each("generated regressor", &|[q, qd, qdd, _]| {
+        arm::regressor(q, qd, qdd)[0][0]
+    });
+    each("oracle regressor", &|[q, qd, qdd, _]| {
+        oracle::regressor(&model, q, qd, qdd)[(0, 0)]
+    });
     each("oracle forward dynamics (crba, rnea, Cholesky)", &|[
         q,
         qd,

@@ -11,6 +11,9 @@
 use codegen::{Chain, Description, JointEffects, JointKind};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Unit, Vector3};
 
+mod regressor;
+pub use regressor::regressor;
+
 /// Number of standard inertial parameters per body.
 pub const INERTIAL_PARAMETERS: usize = 10;
 /// Number of joint-effect parameters per joint: armature, viscous, coulomb,
@@ -219,46 +222,6 @@ pub fn coriolis(model: &Model, q: &[f64], qd: &[f64]) -> DVector<f64> {
     rigid_body_torque(model, &params, Vector3::zeros(), q, qd, &zero)
 }
 
-/// Regressor Y(q, qd, qdd) with Y * model.parameters() == rnea(q, qd, qdd)
-/// (dim dof x 19 per moving body): RNEA with one unit parameter at a time.
-pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f64> {
-    let (n, bodies) = (model.dof(), model.bodies.len());
-    let mut y = DMatrix::zeros(n, model.parameter_count());
-    for b in 0..bodies {
-        for k in 0..INERTIAL_PARAMETERS {
-            let mut params = vec![[0.0; INERTIAL_PARAMETERS]; bodies];
-            params[b][k] = 1.0;
-            let column = rigid_body_torque(model, &params, model.gravity, q, qd, qdd);
-            y.set_column(b * INERTIAL_PARAMETERS + k, &column);
-        }
-    }
-    // Each joint's effect columns at its own state, on its degree of
-    // freedom's row times the multiplier.
-    for (b, body) in model.bodies.iter().enumerate() {
-        let (d, m, _) = body.driver;
-        let e = &body.effects;
-        let (q, qd, qdd) = body.state(q, qd, qdd);
-        let sign = coulomb_sign(qd);
-        let angle = e.ripple_cycles * q;
-        let columns = [
-            qdd,
-            qd,
-            sign,
-            1.0,
-            sign * sign,
-            q - e.spring_rest,
-            stribeck_shape(e, qd),
-            angle.sin(),
-            angle.cos(),
-        ];
-        let base = bodies * INERTIAL_PARAMETERS + b * EFFECT_PARAMETERS;
-        for (k, column) in columns.into_iter().enumerate() {
-            y[(d, base + k)] = m * column;
-        }
-    }
-    y
-}
-
 /// Kinetic energy 0.5 qd^T M(q) qd of the rigid bodies (no armature).
 pub fn kinetic_energy(model: &Model, q: &[f64], qd: &[f64]) -> f64 {
     let mut m = crba(model, q);
@@ -298,14 +261,31 @@ fn torque_in_frames(
     params: &[[f64; INERTIAL_PARAMETERS]],
     gravity: Vector3<f64>,
     frames: &[(Matrix3<f64>, Vector3<f64>)],
-    (q, qd, qdd): (&[f64], &[f64], &[f64]),
+    state: (&[f64], &[f64], &[f64]),
 ) -> DVector<f64> {
-    let n = model.bodies.len();
-    let mut forces = Vec::with_capacity(n);
-    let mut moments = Vec::with_capacity(n);
-    // Base: at rest, accelerating upwards to emulate gravity.
+    let motions = motions(model, gravity, frames, state);
+    let (forces, moments) = motions
+        .iter()
+        .zip(params)
+        .map(|(&motion, p)| wrench(p, motion))
+        .unzip();
+    joint_torques(model, frames, forces, moments)
+}
+
+/// A body's angular velocity, angular acceleration and its origin's linear
+/// acceleration (gravity's included, as the base accelerating upwards), in
+/// its own frame.
+type Motion = (Vector3<f64>, Vector3<f64>, Vector3<f64>);
+
+/// The forward pass of the RNEA: every body's [`Motion`] at the state.
+fn motions(
+    model: &Model,
+    gravity: Vector3<f64>,
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    (q, qd, qdd): (&[f64], &[f64], &[f64]),
+) -> Vec<Motion> {
     let base = (Vector3::zeros(), Vector3::zeros(), -gravity);
-    let mut motions: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)> = Vec::with_capacity(n);
+    let mut motions: Vec<Motion> = Vec::with_capacity(model.bodies.len());
     for (i, body) in model.bodies.iter().enumerate() {
         let (mut w, mut wd, mut vd) = body.parent.map_or(base, |p| motions[p]);
         let a = body.axis.into_inner();
@@ -322,12 +302,19 @@ fn torque_in_frames(
             w = w_parent + a * qd;
             wd += a * qdd + w_parent.cross(&a) * qd;
         }
-        let (m, h, inertia) = unpack(&params[i]);
-        forces.push(m * vd + wd.cross(&h) + w.cross(&w.cross(&h)));
-        moments.push(inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd));
         motions.push((w, wd, vd));
     }
-    joint_torques(model, frames, forces, moments)
+    motions
+}
+
+/// The force and the moment about its origin (in its frame) that move a
+/// body of standard parameters `p` with `motion`: linear in `p`.
+fn wrench(p: &[f64; INERTIAL_PARAMETERS], (w, wd, vd): Motion) -> (Vector3<f64>, Vector3<f64>) {
+    let (m, h, inertia) = unpack(p);
+    (
+        m * vd + wd.cross(&h) + w.cross(&w.cross(&h)),
+        inertia * wd + w.cross(&(inertia * w)) + h.cross(&vd),
+    )
 }
 
 /// [`torque_in_frames`] at rest (zero velocities and accelerations) for

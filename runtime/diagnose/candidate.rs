@@ -10,6 +10,7 @@ pub(super) use super::shape::Shape;
 use super::shape::point_mass;
 use super::stacked::{Link, Stacked};
 use super::whole;
+use crate::parallel::map_in_order;
 
 /// One candidate: a kind, a joint or link, its columns and how its named
 /// parameters map to coefficients of those columns.
@@ -184,6 +185,38 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             |r, _| if r % n == j { f(r) } else { 0.0 },
         )
     };
+    let linear: Vec<&DVector<f64>> = [&qd, &sign, &qdd, &ones, &angle, &model_torque]
+        .into_iter()
+        .chain(&inertial)
+        .chain(tilt.iter().flat_map(|(_, columns)| columns))
+        .collect();
+    let joints: Vec<usize> = (0..n).collect();
+    let searched = map_in_order(&joints, |&j| {
+        let at = |kind: Kind| wanted((kind, Some(j), None));
+        // Built only for a search that runs: one joint's rows of every
+        // linear column.
+        let nuisance = std::cell::OnceCell::new();
+        let nuisance = || nuisance.get_or_init(|| search::Nuisance::new(data, j, &linear));
+        let at_rest = rest.get(j).copied().unwrap_or(0.0);
+        let stribeck = match at(Kind::StribeckFriction) {
+            true => search::stribeck_velocity(nuisance(), at_rest, data.levers[j], &stribeck),
+            false => None,
+        };
+        let modelled = modelled_ripple.get(j).copied().flatten();
+        let given = ripple_given.as_ref().map(|g| g.get(j).copied().flatten());
+        let ripple = match given.unwrap_or(modelled).or(modelled) {
+            _ if !at(Kind::TorqueRipple) => None,
+            // A ripple the model has is refit at its harmonic (a correction
+            // of its amplitudes; a description holds one harmonic per
+            // joint). No search: the nuisance's model-torque column holds
+            // the modelled ripple, so the search could not see that
+            // harmonic, and an amplitude 4 times the model's went unnamed.
+            Some(cycles) => Some((cycles, 1)),
+            None if given.is_some() => None,
+            None => search::ripple_cycles(data, j, &angle, nuisance()),
+        };
+        Searched { stribeck, ripple }
+    });
     let mut list = Vec::new();
     for j in 0..n {
         let one = |kind, name, f: &dyn Fn(usize) -> f64| on_joint(kind, j, name, own(j, f));
@@ -221,20 +254,10 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             columns: vec![own(j, &|r| angle[r]), own(j, &|r| ones[r])],
             ..one(Kind::JointSpring, "", &|_| 0.0)
         });
-        let linear: Vec<&DVector<f64>> = [&qd, &sign, &qdd, &ones, &angle, &model_torque]
-            .into_iter()
-            .chain(&inertial)
-            .chain(tilt.iter().flat_map(|(_, columns)| columns))
-            .collect();
-        // Built only for a search that runs (a Stribeck velocity, a ripple's
-        // harmonic): one joint's rows of every linear column.
-        let nuisance = std::cell::OnceCell::new();
-        let nuisance = || nuisance.get_or_init(|| search::Nuisance::new(data, j, &linear));
-        let at_rest = rest.get(j).copied().unwrap_or(0.0);
-        let found = match at(Kind::StribeckFriction) {
-            true => search::stribeck_velocity(nuisance(), at_rest, data.levers[j], &stribeck),
-            false => None,
-        };
+        let Searched {
+            stribeck: found,
+            ripple,
+        } = searched[j];
         if let Some((k, velocity, searched)) = found {
             // Scored as fitted (see `Columns::stribeck`).
             let fitted = &stribeck[k];
@@ -245,19 +268,6 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
                 ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])
             });
         }
-        let modelled = modelled_ripple.get(j).copied().flatten();
-        let given = ripple_given.as_ref().map(|g| g.get(j).copied().flatten());
-        let ripple = match given.unwrap_or(modelled).or(modelled) {
-            _ if !at(Kind::TorqueRipple) => None,
-            // A ripple the model has is refit at its harmonic (a correction
-            // of its amplitudes; a description holds one harmonic per
-            // joint). No search: the nuisance's model-torque column holds
-            // the modelled ripple, so the search could not see that
-            // harmonic, and an amplitude 4 times the model's went unnamed.
-            Some(cycles) => Some((cycles, 1)),
-            None if given.is_some() => None,
-            None => search::ripple_cycles(data, j, &angle, nuisance()),
-        };
         if let Some((cycles, searched)) = ripple {
             list.push(Candidate {
                 names: vec!["sin", "cos"],
@@ -314,6 +324,16 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         }
     }
     list
+}
+
+/// What a joint's searches chose (each independent of the other joints',
+/// so they run on the machine's cores): the Stribeck velocity (index into
+/// the grid, value, velocities searched) and the ripple's harmonic (cycles
+/// per revolution, shapes searched).
+#[derive(Clone, Copy)]
+struct Searched {
+    stribeck: Option<(usize, f64, usize)>,
+    ripple: Option<(f64, usize)>,
 }
 
 /// The whole-body inertial error of link `k`: its ten columns replaced by
