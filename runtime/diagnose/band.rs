@@ -91,11 +91,12 @@ pub(super) fn velocity(
 }
 
 /// What the reversal stage needs of the motion stage's choices: each
-/// joint's ripple harmonic (not searched again), and whether a link's or
-/// the tilt's columns are needed (the stack builds them only then).
+/// joint's ripple harmonic (not searched again), the links whose columns
+/// are needed and whether the tilt's are (the stack builds only those).
 pub(super) struct Needs {
     pub(super) ripple: Vec<Option<f64>>,
-    pub(super) bodies: bool,
+    /// The links of the named link effects (0-based, ascending).
+    pub(super) links: Vec<usize>,
     pub(super) tilt: bool,
     /// The reversal band's cut-off, Hz.
     pub(super) band_hz: f64,
@@ -126,7 +127,9 @@ impl Needs {
                     })
                 })
                 .collect(),
-            bodies: named().any(|c| c.link.is_some()),
+            links: (0..dof)
+                .filter(|&k| named().any(|c| c.link.as_ref().is_some_and(|l| l.0 == k)))
+                .collect(),
             tilt: named().any(|c| c.kind == Kind::GravityDirection),
             band_hz: band.choice.as_ref().map_or(0.0, |c| c.cutoff_hz),
             places: named().map(place).chain(stribeck).collect(),

@@ -185,9 +185,11 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
             |r, _| if r % n == j { f(r) } else { 0.0 },
         )
     };
+    // A link's columns not built (the reversal stage's unnamed links) are
+    // empty.
     let linear: Vec<&DVector<f64>> = [&qd, &sign, &qdd, &ones, &angle, &model_torque]
         .into_iter()
-        .chain(&inertial)
+        .chain(inertial.iter().filter(|c| !c.is_empty()))
         .chain(tilt.iter().flat_map(|(_, columns)| columns))
         .collect();
     let joints: Vec<usize> = (0..n).collect();

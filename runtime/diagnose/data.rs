@@ -104,7 +104,10 @@ pub(super) fn stack(
         Some(_) => Stage::Reversals,
         None => Stage::Motion,
     };
-    let bodies = reversal.is_none_or(|r| r.bodies);
+    let built: Vec<usize> = match reversal {
+        Some(r) => r.links.clone(),
+        None => (0..n).collect(),
+    };
     let tilted = tilted_models(model).filter(|_| reversal.is_none_or(|r| r.tilt));
     let levers = crate::dynamics::joint_levers(model);
     let moving: Vec<f64> = levers.iter().map(|lever| MOVING * lever).collect();
@@ -114,7 +117,7 @@ pub(super) fn stack(
     // most of what the diagnosis would allocate, and freshly allocated
     // memory is paid again in page faults.
     let mut raw = Vec::new();
-    let template = Rows::with_columns(n, (stage, bodies));
+    let template = Rows::with_columns(n, (stage, &built));
     let (mut durations, mut sample_counts) = (Vec::new(), Vec::new());
     let mut at_rest = vec![0.0_f64; n];
     let mut trimmed = 0;
@@ -158,7 +161,7 @@ pub(super) fn stack(
         durations.push(samples.len() as f64 * dt * settings.downsample.max(1) as f64);
         sample_counts.push(samples.len());
         let this = match reused {
-            Some(motion) => motion.with_dry(rows, (bodies, tilted.is_some())),
+            Some(motion) => motion.with_dry(rows, (&built, tilted.is_some())),
             None => rows,
         };
         kept.push(this);
@@ -245,7 +248,7 @@ fn recording_rows(
         Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
         _ => None,
     };
-    let mut rows = Rows::with_columns(levers.len(), (stage, reversal.is_none_or(|r| r.bodies)));
+    let mut rows = Rows::with_columns(levers.len(), (stage, &template.links));
     if let (Some(cutoff_hz), true) = (cutoff, dry_only) {
         let dt = step(raw);
         let band = band::velocity(raw, settings, moving, band_hz)?;

@@ -29,8 +29,11 @@ pub(super) struct Rows {
     pub(super) coulomb_applied: Vec<f64>,
     /// Fitted own-joint columns: qd, moving sign, qdd, 1, q.
     pub(super) own: [Vec<f64>; 5],
-    /// The regressor's inertial columns.
+    /// The regressor's inertial columns, ten per link; those of a link not
+    /// in `links` are left empty.
     pub(super) inertial: Vec<Vec<f64>>,
+    /// The links whose inertial columns are built.
+    pub(super) links: Vec<usize>,
     /// Own-joint features of the unexplained-structure check
     /// ([`GENERIC_FEATURES`]).
     pub(super) generic: Vec<Vec<f64>>,
@@ -87,7 +90,11 @@ impl Rows {
         use Signal::*;
         let fixed = [Residual, Measured, Qd, Qdd, Gravity, CoulombApplied];
         let own = (0..self.own.len()).map(Own);
-        let inertial = (0..self.inertial.len()).map(Inertial);
+        let inertial = self
+            .links
+            .iter()
+            .flat_map(|k| 10 * k..10 * (k + 1))
+            .map(Inertial);
         let generic = (0..self.generic.len()).map(Generic);
         let tilt = (0..self.tilt.len()).map(Tilt);
         let stribeck = (0..self.stribeck.len()).map(Stribeck);
@@ -171,9 +178,9 @@ impl Rows {
 
     /// Empty rows with every column of `stage`: Stribeck columns for each
     /// velocity of the grid at the reversal stage, the generic features of
-    /// the unexplained-structure check at the motion stage; the links'
-    /// inertial columns with `bodies`.
-    pub(super) fn with_columns(dof: usize, (stage, bodies): (Stage, bool)) -> Rows {
+    /// the unexplained-structure check at the motion stage; the inertial
+    /// columns of `links`.
+    pub(super) fn with_columns(dof: usize, (stage, links): (Stage, &[usize])) -> Rows {
         let (stribeck, generic) = match stage {
             Stage::Reversals => (stribeck_velocities().len(), 0),
             Stage::Motion => (0, GENERIC_FEATURES.len()),
@@ -188,7 +195,8 @@ impl Rows {
             gravity: column(0),
             coulomb_applied: column(0),
             own: std::array::from_fn(column),
-            inertial: columns(if bodies { 10 * dof } else { 0 }),
+            inertial: columns(if links.is_empty() { 0 } else { 10 * dof }),
+            links: links.to_vec(),
             generic: columns(generic),
             tilt: std::array::from_fn(column),
             measured_rate: column(0),
@@ -200,8 +208,8 @@ impl Rows {
     /// dry-friction signals of `dry` (kept from [`fill_dry`] at the same
     /// pipeline and samples): what [`fill`] builds for the reversal stage's
     /// pass at the motion band, every other signal being the same numbers.
-    /// A link's columns only with `bodies`; the tilt's zero without `tilt`.
-    pub(super) fn with_dry(&self, dry: Rows, (bodies, tilt): (bool, bool)) -> Rows {
+    /// The inertial columns of `links` only; the tilt's zero without `tilt`.
+    pub(super) fn with_dry(&self, dry: Rows, (links, tilt): (&[usize], bool)) -> Rows {
         let own = |k: usize| match k {
             1 => dry.own[1].clone(),
             _ => self.own[k].clone(),
@@ -214,11 +222,16 @@ impl Rows {
             gravity: self.gravity.clone(),
             coulomb_applied: self.coulomb_applied.clone(),
             own: std::array::from_fn(own),
-            inertial: if bodies {
-                self.inertial.clone()
-            } else {
-                Vec::new()
+            inertial: match links.is_empty() {
+                true => Vec::new(),
+                false => (0..self.inertial.len())
+                    .map(|k| match links.contains(&(k / 10)) {
+                        true => self.inertial[k].clone(),
+                        false => Vec::new(),
+                    })
+                    .collect(),
             },
+            links: links.to_vec(),
             generic: Vec::new(),
             tilt: std::array::from_fn(|k| match tilt {
                 true => self.tilt[k].clone(),

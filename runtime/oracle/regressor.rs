@@ -52,20 +52,20 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f
     y
 }
 
-/// Forces (rows 0-2) and moments about the origin (rows 3-5) of a body
-/// moving with `motion`, one column per unit standard parameter: [`wrench`]
-/// with that parameter 1 and the others 0, term by term.
+/// The force and the moment about its origin of a body moving with
+/// `motion`, one column per unit standard parameter ([`super::wrench`] with
+/// that parameter 1 and the others 0, term by term). Only the mass and the
+/// first moment move a force: the inertia's six columns have none.
 fn unit_wrenches((w, wd, vd): Motion) -> Wrenches {
-    let mut out = Wrenches::zeros();
-    out.fixed_view_mut::<3, 1>(0, 0).copy_from(&vd);
+    let mut forces = Forces::zeros();
+    let mut moments = Moments::zeros();
+    forces.set_column(0, &vd);
     for (i, e) in [Vector3::x(), Vector3::y(), Vector3::z()]
         .iter()
         .enumerate()
     {
-        let force = wd.cross(e) + w.cross(&w.cross(e));
-        out.fixed_view_mut::<3, 1>(0, 1 + i).copy_from(&force);
-        out.fixed_view_mut::<3, 1>(3, 1 + i)
-            .copy_from(&e.cross(&vd));
+        forces.set_column(1 + i, &(wd.cross(e) + w.cross(&w.cross(e))));
+        moments.set_column(1 + i, &e.cross(&vd));
     }
     // The inertia's six entries in `unpack`'s order (xx, xy, yy, xz, yz, zz).
     let pairs = [(0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)];
@@ -73,48 +73,66 @@ fn unit_wrenches((w, wd, vd): Motion) -> Wrenches {
         let mut inertia = Matrix3::zeros();
         inertia[(a, b)] = 1.0;
         inertia[(b, a)] = 1.0;
-        let moment = inertia * wd + w.cross(&(inertia * w));
-        out.fixed_view_mut::<3, 1>(3, 4 + k).copy_from(&moment);
+        moments.set_column(4 + k, &(inertia * wd + w.cross(&(inertia * w))));
     }
-    out
+    Wrenches { forces, moments }
 }
 
 /// The backward pass of the RNEA for body `b`'s wrenches alone: their
 /// joint torques on each joint from `b` to the base, given to `add` as
-/// (degree of freedom, one torque per wrench), in the order the full pass
-/// adds them.
+/// (degree of freedom, one torque per parameter), in the order the full
+/// pass adds them.
 fn towards_base(
     model: &Model,
     frames: &[(Matrix3<f64>, Vector3<f64>)],
     b: usize,
-    mut wrenches: Wrenches,
+    Wrenches {
+        mut forces,
+        mut moments,
+    }: Wrenches,
     mut add: impl FnMut(usize, RowTorques),
 ) {
     let mut i = b;
     loop {
         let body = &model.bodies[i];
-        let along = match body.kind {
-            JointKind::Prismatic => wrenches.fixed_rows::<3>(0),
-            _ => wrenches.fixed_rows::<3>(3),
-        };
         let (d, multiplier, _) = body.driver;
-        add(d, (body.axis.transpose() * along) * multiplier);
+        let axis = body.axis.transpose() * multiplier;
+        let torques = match body.kind {
+            JointKind::Prismatic => {
+                let mut row = RowTorques::zeros();
+                row.fixed_columns_mut::<FORCE_COLUMNS>(0)
+                    .copy_from(&(axis * forces));
+                row
+            }
+            _ => axis * moments,
+        };
+        add(d, torques);
         let Some(parent) = body.parent else {
             return;
         };
         let (r, p) = frames[i];
-        let forces = r * wrenches.fixed_rows::<3>(0);
-        let moments = r * wrenches.fixed_rows::<3>(3) + p.cross_matrix() * forces;
-        wrenches.fixed_rows_mut::<3>(0).copy_from(&forces);
-        wrenches.fixed_rows_mut::<3>(3).copy_from(&moments);
+        forces = r * forces;
+        moments = r * moments;
+        let mut first = moments.fixed_columns_mut::<FORCE_COLUMNS>(0);
+        first += p.cross_matrix() * forces;
         i = parent;
     }
 }
 
-/// One body's unit-parameter wrenches: forces over moments, a column per
-/// standard parameter.
-type Wrenches = SMatrix<f64, 6, INERTIAL_PARAMETERS>;
-/// A joint's torque of each of them.
+/// The parameters that move a force: the mass and the first moment.
+const FORCE_COLUMNS: usize = 4;
+type Forces = SMatrix<f64, 3, FORCE_COLUMNS>;
+type Moments = SMatrix<f64, 3, INERTIAL_PARAMETERS>;
+
+/// One body's unit-parameter wrenches: forces (of the first
+/// [`FORCE_COLUMNS`] parameters; the others' are zero) and moments about
+/// the body origin, a column per standard parameter.
+struct Wrenches {
+    forces: Forces,
+    moments: Moments,
+}
+
+/// A joint's torque of each parameter.
 type RowTorques = SMatrix<f64, 1, INERTIAL_PARAMETERS>;
 
 #[cfg(test)]

@@ -70,7 +70,7 @@ fn produced(stage: Stage, budget: usize) -> Rows {
             dt: DT,
             samples: &samples,
         };
-        let mut rows = Rows::with_columns(3, (stage, true));
+        let mut rows = Rows::with_columns(3, (stage, &[0, 1, 2]));
         let signals = rows.signals();
         let bad = produce(
             &mut rows,
@@ -109,7 +109,7 @@ fn any_number_of_parts_builds_the_same_columns() {
     with_inputs(|inputs, traj| {
         let derived = derived(inputs.model, traj).unwrap();
         for stage in [Stage::Motion, Stage::Reversals] {
-            let signals = Rows::with_columns(3, (stage, true)).signals();
+            let signals = Rows::with_columns(3, (stage, &[0, 1, 2])).signals();
             let built = |count: usize, with: Option<&Derived>| {
                 // Memory reused from a longer build must not show through
                 // (it holds a different value for each count).
