@@ -67,8 +67,19 @@ pub(super) fn choose(
             &selection.selected,
             settings,
         ) {
-            selection = select(&moments, data.dof, candidates, settings, &withdrawn);
-            selection.notes.push(note);
+            let with_body = select(&moments, data.dof, candidates, settings, &withdrawn);
+            if payload_body::body_named(candidates, &with_body.selected) {
+                selection = with_body;
+                selection.notes.push(note);
+            } else {
+                // Its moment failed beside the later effects and the
+                // backward check dropped the payload, and with it the
+                // effects its gravity had held up: the point mass's
+                // selection stands.
+                selection
+                    .notes
+                    .extend(payload_body::withdraw_inertia(candidates));
+            }
         }
         let (mut selected, mut notes) = (selection.selected, selection.notes);
         // Pruning and the body swaps may have changed the selection since

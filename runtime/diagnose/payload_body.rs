@@ -108,6 +108,46 @@ pub(super) fn stand_ins(m: &Moments, candidates: &[Candidate], selected: &[usize
         .collect()
 }
 
+/// Whether `selected` holds a payload with a moment of its own (one
+/// [`give_inertia`] made a body).
+pub(super) fn body_named(candidates: &[Candidate], selected: &[usize]) -> bool {
+    selected.iter().any(|&c| {
+        candidates[c].kind == Kind::Payload
+            && matches!(
+                candidates[c].shape,
+                Shape::Body {
+                    own_inertia: true,
+                    ..
+                }
+            )
+    })
+}
+
+/// Makes the payload [`give_inertia`] made a body a point mass again; the
+/// note that says so.
+pub(super) fn withdraw_inertia(candidates: &mut [Candidate]) -> Option<String> {
+    let payload = candidates.iter_mut().find(|c| {
+        c.kind == Kind::Payload
+            && matches!(
+                c.shape,
+                Shape::Body {
+                    own_inertia: true,
+                    ..
+                }
+            )
+    })?;
+    if let Shape::Body { own_inertia, .. } = &mut payload.shape {
+        *own_inertia = false;
+    }
+    payload.names.retain(|&n| n != "inertia");
+    Some(format!(
+        "{}: its own moment of inertia, determined at the step that named it, did not hold \
+         once the effects named after it were fitted with it (the selection with it a body \
+         dropped it): kept a point mass",
+        label(payload)
+    ))
+}
+
 /// Whether a candidate is a payload without a moment of its own.
 fn point_payload(c: &Candidate) -> bool {
     c.kind == Kind::Payload
@@ -118,4 +158,59 @@ fn point_payload(c: &Candidate) -> bool {
                 ..
             }
         )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DVector, Vector3};
+
+    /// A point-mass payload of the last of three links, as `candidates`
+    /// builds it.
+    fn point() -> Candidate {
+        Candidate {
+            kind: Kind::Payload,
+            joint: None,
+            link: Some((2, "tool".to_string())),
+            modelled: [0.0; 10],
+            extent: 0.5,
+            names: vec!["mass", "cx", "cy", "cz"],
+            columns: vec![DVector::zeros(3); 10],
+            applied: None,
+            shape: Shape::Body {
+                offset: [0.0; 10],
+                base_mass: 0.0,
+                base_moment: Vector3::zeros(),
+                own_inertia: false,
+                held_com: None,
+            },
+            settings: Vec::new(),
+            searched: 1,
+        }
+    }
+
+    /// On an independent UR10e (one recording: friction on every joint, a
+    /// 1.09 kg payload, an offset), the payload made a body at its step lost
+    /// its moment beside the friction named later; the backward check then
+    /// dropped the payload and ten friction terms with it, leaving joint 2's
+    /// held-out error where it began. The payload is a point mass again,
+    /// as first fitted, and nothing else is.
+    #[test]
+    fn a_withdrawn_moment_leaves_the_point_mass_it_was() {
+        let mut candidates = vec![point(), point()];
+        candidates[1].kind = Kind::InertialError;
+        let before = candidates[0].names.clone();
+        if let Shape::Body { own_inertia, .. } = &mut candidates[0].shape {
+            *own_inertia = true;
+        }
+        candidates[0].names.push("inertia");
+        assert!(body_named(&candidates, &[0, 1]));
+        assert!(!body_named(&candidates, &[1]));
+        let note = withdraw_inertia(&mut candidates).unwrap();
+        assert!(note.contains("kept a point mass"), "{note}");
+        assert!(point_payload(&candidates[0]));
+        assert_eq!(candidates[0].names, before);
+        assert!(!body_named(&candidates, &[0, 1]));
+        assert!(withdraw_inertia(&mut candidates).is_none());
+    }
 }
