@@ -111,31 +111,13 @@ pub(super) fn stand_ins(m: &Moments, candidates: &[Candidate], selected: &[usize
 /// Whether `selected` holds a payload with a moment of its own (one
 /// [`give_inertia`] made a body).
 pub(super) fn body_named(candidates: &[Candidate], selected: &[usize]) -> bool {
-    selected.iter().any(|&c| {
-        candidates[c].kind == Kind::Payload
-            && matches!(
-                candidates[c].shape,
-                Shape::Body {
-                    own_inertia: true,
-                    ..
-                }
-            )
-    })
+    selected.iter().any(|&c| body_payload(&candidates[c]))
 }
 
 /// Makes the payload [`give_inertia`] made a body a point mass again; the
 /// note that says so.
 pub(super) fn withdraw_inertia(candidates: &mut [Candidate]) -> Option<String> {
-    let payload = candidates.iter_mut().find(|c| {
-        c.kind == Kind::Payload
-            && matches!(
-                c.shape,
-                Shape::Body {
-                    own_inertia: true,
-                    ..
-                }
-            )
-    })?;
+    let payload = candidates.iter_mut().find(|c| body_payload(c))?;
     if let Shape::Body { own_inertia, .. } = &mut payload.shape {
         *own_inertia = false;
     }
@@ -155,6 +137,18 @@ fn point_payload(c: &Candidate) -> bool {
             c.shape,
             Shape::Body {
                 own_inertia: false,
+                ..
+            }
+        )
+}
+
+/// Whether a candidate is a payload with a moment of its own.
+fn body_payload(c: &Candidate) -> bool {
+    c.kind == Kind::Payload
+        && matches!(
+            c.shape,
+            Shape::Body {
+                own_inertia: true,
                 ..
             }
         )
