@@ -363,7 +363,7 @@ fn whole_candidate(k: usize, link: &Link, columns: &[DVector<f64>]) -> Option<Ca
 }
 
 /// A payload on the last link: a point mass added to it (mass and COM).
-fn payload_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidate {
+pub(super) fn payload_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidate {
     Candidate {
         kind: Kind::Payload,
         shape: Shape::Body {

@@ -132,55 +132,35 @@ pub(super) fn withdraw_inertia(candidates: &mut [Candidate]) -> Option<String> {
 
 /// Whether a candidate is a payload without a moment of its own.
 fn point_payload(c: &Candidate) -> bool {
-    c.kind == Kind::Payload
-        && matches!(
-            c.shape,
-            Shape::Body {
-                own_inertia: false,
-                ..
-            }
-        )
+    payload_with_moment(c, false)
 }
 
 /// Whether a candidate is a payload with a moment of its own.
 fn body_payload(c: &Candidate) -> bool {
+    payload_with_moment(c, true)
+}
+
+fn payload_with_moment(c: &Candidate, own: bool) -> bool {
     c.kind == Kind::Payload
-        && matches!(
-            c.shape,
-            Shape::Body {
-                own_inertia: true,
-                ..
-            }
-        )
+        && matches!(c.shape, Shape::Body { own_inertia, .. } if own_inertia == own)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{DVector, Vector3};
+    use crate::diagnose::candidate::payload_candidate;
+    use crate::diagnose::stacked::Link;
+    use nalgebra::DVector;
 
     /// A point-mass payload of the last of three links, as `candidates`
     /// builds it.
     fn point() -> Candidate {
-        Candidate {
-            kind: Kind::Payload,
-            joint: None,
-            link: Some((2, "tool".to_string())),
-            modelled: [0.0; 10],
-            extent: 0.5,
-            names: vec!["mass", "cx", "cy", "cz"],
-            columns: vec![DVector::zeros(3); 10],
-            applied: None,
-            shape: Shape::Body {
-                offset: [0.0; 10],
-                base_mass: 0.0,
-                base_moment: Vector3::zeros(),
-                own_inertia: false,
-                held_com: None,
-            },
-            settings: Vec::new(),
-            searched: 1,
-        }
+        let link = Link {
+            name: "tool".to_string(),
+            parameters: [0.0; 10],
+            extent: f64::INFINITY,
+        };
+        payload_candidate(2, &link, vec![DVector::zeros(3); 10])
     }
 
     /// On an independent UR10e (one recording: friction on every joint, a
