@@ -36,6 +36,42 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
+/// The Panda diagnosed from 3 recordings of 20 s at 1 kHz (the compiled
+/// model simulated, no effect hidden) with the model compiled and with
+/// the same model read from its TOML file (the numeric dynamics, as for
+/// an imported URDF): the same recordings, the same run.
+fn panda(c: &mut Criterion) {
+    let compiled = sdnn::model("panda").expect("panda");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/panda.toml");
+    let described = sdnn::described::Described::load(&path).expect("panda.toml");
+    let config = StudyConfig::default();
+    let waypoints = WaypointConfig {
+        limits: study::limits(compiled, &config).expect("limits"),
+        ..WaypointConfig::default()
+    };
+    let recordings: Vec<_> = (0..3)
+        .map(|seed| {
+            study::record_trajectory(compiled, compiled, &waypoints, seed)
+                .expect("simulation")
+                .measured
+        })
+        .collect();
+    let pipeline = Pipeline::auto(&recordings, None, None).expect("pipeline");
+    let mut group = c.benchmark_group("diagnose panda, 3 recordings x 20 s at 1 kHz");
+    group.sample_size(10);
+    group.bench_function("compiled model", |b| {
+        b.iter(|| {
+            diagnose(compiled, &recordings, &pipeline, Settings::default()).expect("diagnosis")
+        })
+    });
+    group.bench_function("model from its TOML", |b| {
+        b.iter(|| {
+            diagnose(described, &recordings, &pipeline, Settings::default()).expect("diagnosis")
+        })
+    });
+    group.finish();
+}
+
 /// `sdnn excite --model panda --duration 20` without the files: the
 /// design and its comparison with one default recording.
 fn excite(c: &mut Criterion) {
@@ -94,5 +130,5 @@ fn excite(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench, excite);
+criterion_group!(benches, bench, panda, excite);
 criterion_main!(benches);
