@@ -5,26 +5,33 @@
 //! `cargo bench --bench diagnose`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use sdnn::Dynamics;
 use sdnn::diagnose::{Settings, diagnose};
 use sdnn::preprocess::Pipeline;
 use sdnn::sim::reference::WaypointConfig;
 use sdnn::study::{self, StudyConfig};
+use sdnn::trajectory::Trajectory;
 
-fn bench(c: &mut Criterion) {
-    let plant = sdnn::model("kinova_gen3_lite_3dof_plant").expect("plant");
-    let nominal = sdnn::model("kinova_gen3_lite_3dof").expect("nominal");
-    let config = StudyConfig::default();
+/// Three recordings of 20 s at 1 kHz: `plant` simulated, tracking the
+/// default waypoints within `nominal`'s limits (seeds 0-2).
+fn recordings(plant: &dyn Dynamics, nominal: &dyn Dynamics) -> Vec<Trajectory> {
     let waypoints = WaypointConfig {
-        limits: study::limits(nominal, &config).expect("limits"),
+        limits: study::limits(nominal, &StudyConfig::default()).expect("limits"),
         ..WaypointConfig::default()
     };
-    let recordings: Vec<_> = (0..3)
+    (0..3)
         .map(|seed| {
             study::record_trajectory(plant, nominal, &waypoints, seed)
                 .expect("simulation")
                 .measured
         })
-        .collect();
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let plant = sdnn::model("kinova_gen3_lite_3dof_plant").expect("plant");
+    let nominal = sdnn::model("kinova_gen3_lite_3dof").expect("nominal");
+    let recordings = recordings(plant, nominal);
     let mut group = c.benchmark_group("diagnose");
     group.sample_size(10);
     group.bench_function("3 recordings x 20 s at 1 kHz", |b| {
@@ -44,18 +51,7 @@ fn panda(c: &mut Criterion) {
     let compiled = sdnn::model("panda").expect("panda");
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/panda.toml");
     let described = sdnn::described::Described::load(&path).expect("panda.toml");
-    let config = StudyConfig::default();
-    let waypoints = WaypointConfig {
-        limits: study::limits(compiled, &config).expect("limits"),
-        ..WaypointConfig::default()
-    };
-    let recordings: Vec<_> = (0..3)
-        .map(|seed| {
-            study::record_trajectory(compiled, compiled, &waypoints, seed)
-                .expect("simulation")
-                .measured
-        })
-        .collect();
+    let recordings = recordings(compiled, compiled);
     let pipeline = Pipeline::auto(&recordings, None, None).expect("pipeline");
     let mut group = c.benchmark_group("diagnose panda, 3 recordings x 20 s at 1 kHz");
     group.sample_size(10);
