@@ -187,6 +187,41 @@ fn record(friction: Friction, seed: u64, dwell: bool) -> Trajectory {
     Trajectory::new(t, matrix(q), matrix(qd), None, matrix(tau)).unwrap()
 }
 
+/// 20 s at 1 kHz of the reference itself, its torque the inverse
+/// dynamics plus friction (a motion that does not react to its friction,
+/// as an inverse-dynamics simulator gives it); positions with noise of
+/// 1e-4 rad, velocities their central differences, torque noise 0.05 N m.
+fn record_prescribed(friction: Friction, seed: u64) -> Trajectory {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let phase = rng.random::<f64>() * std::f64::consts::TAU;
+    let (period, samples) = (1e-3, 20_000);
+    let mut q = DMatrix::zeros(samples, 2);
+    let mut tau = DMatrix::zeros(samples, 2);
+    for k in 0..samples {
+        let r = [0, 1].map(|j| reference_state(j, k as f64 * period, phase, false));
+        let (m, bias) = dynamics([r[0][0], r[1][0]], [r[0][1], r[1][1]]);
+        for j in 0..2 {
+            let inertial = m[j][0] * r[0][2] + m[j][1] * r[1][2];
+            let friction = if j == 0 {
+                friction.torque(r[0][1])
+            } else {
+                0.0
+            };
+            q[(k, j)] = r[j][0] + 1e-4 * normal(&mut rng);
+            tau[(k, j)] = inertial + bias[j] + friction + 0.05 * normal(&mut rng);
+        }
+    }
+    let mut qd = DMatrix::zeros(samples, 2);
+    for k in 0..samples {
+        let (a, b) = (k.saturating_sub(1), (k + 1).min(samples - 1));
+        for j in 0..2 {
+            qd[(k, j)] = (q[(b, j)] - q[(a, j)]) / ((b - a) as f64 * period);
+        }
+    }
+    let t = (0..samples).map(|k| k as f64 * period).collect();
+    Trajectory::new(t, q, qd, None, tau).unwrap()
+}
+
 fn model(dir: &Dir) -> &'static dyn Dynamics {
     sdnn::described::Described::load(&dir.write("planar_stribeck.toml", DESCRIPTION)).unwrap()
 }
@@ -248,6 +283,40 @@ fn a_breakaway_on_the_shoulder_is_named() {
             k,
             Kind::CoulombFriction | Kind::ViscousFriction | Kind::StribeckFriction
         )) && d.effects.iter().all(|e| e.joint == Some(1)),
+        "{:?}",
+        named(&d)
+    );
+}
+
+/// The same breakaway where the motion does not react to it: the
+/// reversal band's acceleration is then the noise of twice-differentiated
+/// positions (about 1 rad/s^2 here, times the shoulder's inertia), and the
+/// reversal stage computes the model's torque on the motion band's states.
+#[test]
+fn a_breakaway_under_a_prescribed_motion_is_named() {
+    let friction = Friction {
+        sliding: 0.16,
+        static_: 0.39,
+        velocity: 0.15,
+        viscous: 0.1,
+    };
+    let dir = Dir::new();
+    let recordings: Vec<Trajectory> = (0..3).map(|s| record_prescribed(friction, 7 + s)).collect();
+    let pipeline = Pipeline::auto(&recordings, None, None).unwrap();
+    let d = diagnose(model(&dir), &recordings, &pipeline, Settings::default()).unwrap();
+    let stribeck = d
+        .effects
+        .iter()
+        .find(|e| e.kind == Kind::StribeckFriction && e.joint == Some(1))
+        .unwrap_or_else(|| panic!("{:?}\n{:#?}", named(&d), d.notes));
+    let value = |name: &str| stribeck.parameters[name].as_f64().unwrap();
+    assert!(
+        (value("velocity") / 0.15 - 1.0).abs() <= 0.2,
+        "{stribeck:?}"
+    );
+    assert!((value("excess") / 0.23 - 1.0).abs() <= 0.25, "{stribeck:?}");
+    assert!(
+        d.effects.iter().all(|e| e.joint == Some(1)),
         "{:?}",
         named(&d)
     );

@@ -9,6 +9,8 @@
 
 use nalgebra::DMatrix;
 
+use crate::dynamics::Dynamics;
+
 use super::candidate::{Candidate, Place, place};
 use super::kind::Kind;
 use crate::preprocess::{Filter, Pipeline, Preprocess, step};
@@ -71,23 +73,131 @@ pub(super) fn pipeline(motion: &Pipeline) -> Option<Pipeline> {
 }
 
 /// The raw velocity through the same zero-phase Butterworth at the
-/// reversal cut-off `band_hz` (at the reversal band's own pipeline, the
-/// states' velocity), and the at-rest speeds of its noise (as for the
-/// Coulomb column at the motion band).
+/// reversal cut-off of `needs` (at the reversal band's own pipeline, the
+/// states' velocity), and the at-rest speeds of its noise.
 pub(super) fn velocity(
     raw: &Trajectory,
     settings: &Preprocess,
     moving: &[f64],
-    band_hz: f64,
+    needs: &Needs,
 ) -> anyhow::Result<Band> {
     let dt = step(raw);
-    let band = Preprocess {
-        filter: Filter::Butterworth { cutoff_hz: band_hz },
+    let at = |cutoff_hz: f64| Preprocess {
+        filter: Filter::Butterworth { cutoff_hz },
         ..settings.clone()
     };
-    let qd = band.smooth_columns(raw.qd(), dt)?;
-    let rest = rest_speeds(raw, &qd, band_hz, moving);
+    let qd = at(needs.band_hz).smooth_columns(raw.qd(), dt)?;
+    let mut rest = rest_speeds(raw, &qd, needs.band_hz, moving);
+    if needs.motion_hz > 0.0 && needs.motion_hz < needs.band_hz {
+        let slow = at(needs.motion_hz).smooth_columns(raw.qd(), dt)?;
+        let between = noise_speeds(&qd, &slow, moving);
+        // Each bound is high in its own way (see `noise_speeds`).
+        for (r, b) in rest.iter_mut().zip(between) {
+            *r = r.min(b);
+        }
+    }
     Ok(Band { qd, rest })
+}
+
+/// Each joint's at-rest speed in the reversal band: three deviations of
+/// its velocity there from the motion band's (`slow`), at least `moving`.
+/// The motion lies within the motion band, so what the reversal band adds
+/// is its noise, and a stick-slip's jerks, which raise this bound. The
+/// other bound ([`rest_speeds`]) scales the raw velocity's noise as if it
+/// were white, which is high where velocities are differentiated from
+/// noisy positions (noise rising with frequency): it put an independent
+/// Panda's at-rest speed at 0.12 rad/s for a filtered noise near 0.003,
+/// hiding breakaways below it. The lower of the two is used.
+fn noise_speeds(fast: &DMatrix<f64>, slow: &DMatrix<f64>, moving: &[f64]) -> Vec<f64> {
+    let len = fast.nrows().max(1) as f64;
+    (0..fast.ncols())
+        .map(|j| {
+            let sigma = ((fast.column(j) - slow.column(j)).norm_squared() / len).sqrt();
+            (3.0 * sigma).max(moving[j])
+        })
+        .collect()
+}
+
+/// The states the reversal band's columns other than the dry-friction ones
+/// are computed from, with their preprocessing: the reversal band's own, or
+/// the motion band's where the recorded torque, not the arm's acceleration,
+/// holds the friction's steps at reversals. Where the torque drives a
+/// motion that does not react (a prescribed motion), the acceleration
+/// between the two bands is the noise of twice-differentiated positions,
+/// and times a heavy joint's inertia it buries a breakaway (an independent
+/// Panda's shoulder at 1 kHz: about 2 N m beside a 0.17 N m excess); where
+/// the arm's acceleration follows its friction (a breakaway jerks a
+/// feedback-controlled arm), the steps are in that acceleration and the
+/// motion band's states would hide them.
+pub(super) fn states(
+    model: &dyn Dynamics,
+    raw: &Trajectory,
+    settings: &Preprocess,
+    needs: &Needs,
+) -> anyhow::Result<(Trajectory, Preprocess)> {
+    let at_band = settings.states_at_full_rate(raw)?;
+    if needs.motion_hz <= 0.0 || !matches!(settings.filter, Filter::Butterworth { .. }) {
+        return Ok((at_band, settings.clone()));
+    }
+    let motion = Preprocess {
+        filter: Filter::Butterworth {
+            cutoff_hz: needs.motion_hz,
+        },
+        ..settings.clone()
+    };
+    let smooth = motion.states_at_full_rate(raw)?;
+    let (in_torque, in_motion) = steps(
+        model,
+        raw,
+        (&at_band, &smooth),
+        (settings, &motion),
+        &needs.tried(),
+    )?;
+    Ok(match in_torque > in_motion {
+        true => (smooth, motion),
+        false => (at_band, settings.clone()),
+    })
+}
+
+/// How much of the friction's steps at reversals (the sign of the
+/// velocity at the reversal band, less its motion-band part) the recorded
+/// torque holds, and how much the inertia times the acceleration between
+/// the two bands holds against them, summed over `joints` at the reversal
+/// band's kept samples: with a prescribed motion the first is the dry
+/// friction's level times the steps' energy and the second noise, with a
+/// motion that reacts the other way round.
+fn steps(
+    model: &dyn Dynamics,
+    raw: &Trajectory,
+    (at_band, smooth): (&Trajectory, &Trajectory),
+    (band, motion): (&Preprocess, &Preprocess),
+    joints: &[usize],
+) -> anyhow::Result<(f64, f64)> {
+    let dt = step(raw);
+    let sign = at_band.qd().map(f64::signum);
+    let sign_steps = &sign - motion.smooth_columns(&sign, dt)?;
+    let torque_steps = raw.tau() - motion.smooth_columns(raw.tau(), dt)?;
+    let clear = Pipeline::clear_of_transients(motion, raw.len(), dt);
+    let samples = Pipeline::kept_samples(band, raw.len(), dt);
+    let row = |m: &DMatrix<f64>, s: usize| -> Vec<f64> { m.row(s).iter().copied().collect() };
+    let accel = |t: &Trajectory| {
+        t.qdd()
+            .cloned()
+            .ok_or_else(|| anyhow::anyhow!("preprocessed states have no accelerations"))
+    };
+    let (fast, slow) = (accel(at_band)?, accel(smooth)?);
+    let (mut in_torque, mut in_motion) = (0.0, 0.0);
+    for s in samples.into_iter().filter(|s| clear.contains(s)) {
+        let (q, qd) = (row(smooth.q(), s), row(smooth.qd(), s));
+        // The inertia times the acceleration between the bands: the
+        // model's torque is linear in the acceleration.
+        let inertial = model.tau(&q, &qd, &row(&fast, s))? - model.tau(&q, &qd, &row(&slow, s))?;
+        for &j in joints {
+            in_torque += torque_steps[(s, j)] * sign_steps[(s, j)];
+            in_motion -= inertial[j] * sign_steps[(s, j)];
+        }
+    }
+    Ok((in_torque, in_motion))
 }
 
 /// What the reversal stage needs of the motion stage's choices: each
@@ -100,19 +210,28 @@ pub(super) struct Needs {
     pub(super) tilt: bool,
     /// The reversal band's cut-off, Hz.
     pub(super) band_hz: f64,
+    /// The motion stage's cut-off, Hz: the states every column but the
+    /// dry-friction ones is computed from (see [`super::reversals`]).
+    pub(super) motion_hz: f64,
     /// The candidates the stage refits (those named) and tries (Stribeck
     /// friction on the joints tried): the only ones its stack builds.
     pub(super) places: Vec<Place>,
 }
 
 impl Needs {
+    /// The joints whose Stribeck friction is tried.
+    fn tried(&self) -> Vec<usize> {
+        let stribeck = self.places.iter().filter(|p| p.0 == Kind::StribeckFriction);
+        stribeck.filter_map(|p| p.1).collect()
+    }
+
     /// What `selected` of `candidates` (the motion stage's) needs, with
     /// Stribeck friction tried on `joints`.
     pub(super) fn of(
         (candidates, selected): (&[Candidate], &[usize]),
         dof: usize,
         joints: &[usize],
-        band: &Pipeline,
+        (motion, band): (&Pipeline, &Pipeline),
     ) -> Needs {
         let named = || selected.iter().map(|&c| &candidates[c]);
         let stribeck = joints
@@ -132,6 +251,7 @@ impl Needs {
                 .collect(),
             tilt: named().any(|c| c.kind == Kind::GravityDirection),
             band_hz: band.choice.as_ref().map_or(0.0, |c| c.cutoff_hz),
+            motion_hz: motion.choice.as_ref().map_or(0.0, |c| c.cutoff_hz),
             places: named().map(place).chain(stribeck).collect(),
         }
     }

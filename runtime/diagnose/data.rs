@@ -243,15 +243,14 @@ fn recording_rows(
     (levers, moving): (&[f64], &[f64]),
     (template, memory): (&Rows, &mut Vec<Vec<f64>>),
 ) -> anyhow::Result<Recorded> {
-    let band_hz = reversal.map_or(0.0, |r| r.band_hz);
     let cutoff = match settings.filter {
         Filter::Butterworth { cutoff_hz } => Some(cutoff_hz),
         _ => None,
     };
     let mut rows = Rows::with_columns(levers.len(), (stage, &template.links));
-    if let (Some(cutoff_hz), true) = (cutoff, dry_only) {
+    if let (Some(cutoff_hz), true, Some(needs)) = (cutoff, dry_only, reversal) {
         let dt = step(raw);
-        let band = band::velocity(raw, settings, moving, band_hz)?;
+        let band = band::velocity(raw, settings, moving, needs)?;
         let samples = Pipeline::kept_samples(settings, raw.len(), dt);
         let inputs = Inputs {
             model,
@@ -283,18 +282,23 @@ fn recording_rows(
     }
     // Parallel filtering (Butterworth): the whole equation tau = Y theta
     // passes the torque filter, so every column is compared exactly.
-    let traj = match cutoff {
-        Some(_) => settings.states_at_full_rate(raw)?,
-        None => settings.apply(raw)?,
+    let (traj, states) = match (cutoff, reversal) {
+        (Some(_), Some(needs)) => band::states(model, raw, settings, needs)?,
+        (Some(_), None) => (settings.states_at_full_rate(raw)?, settings.clone()),
+        (None, _) => (settings.apply(raw)?, settings.clone()),
     };
     let dt = step(&traj);
-    let band = match (cutoff, stage) {
+    let band = match (cutoff, reversal) {
         (None, _) => Band::of(&traj, moving),
-        (Some(_), Stage::Motion) => Band::of(&traj, &rest_velocities(raw, &traj, settings, moving)),
-        (Some(_), Stage::Reversals) => band::velocity(raw, settings, moving, band_hz)?,
+        (Some(_), None) => Band::of(&traj, &rest_velocities(raw, &traj, settings, moving)),
+        (Some(_), Some(needs)) => band::velocity(raw, settings, moving, needs)?,
     };
-    let samples = match cutoff {
-        Some(_) => Pipeline::kept_samples(settings, traj.len(), dt),
+    let samples: Vec<usize> = match cutoff {
+        Some(_) => {
+            let clear = Pipeline::clear_of_transients(&states, traj.len(), dt);
+            let kept = Pipeline::kept_samples(settings, traj.len(), dt);
+            kept.into_iter().filter(|s| clear.contains(s)).collect()
+        }
         None => (0..traj.len()).collect(),
     };
     let inputs = Inputs {

@@ -496,9 +496,7 @@ fn single(
         (Signal::Measured, Some(d)) => fill(column, at, |s, i| d.traj.tau()[(s, i)]),
         (Signal::Qdd | Signal::Own(2), Some(d)) => fill(column, at, |s, i| d.accel[(s, i)]),
         (Signal::Gravity, Some(d)) => fill(column, at, |s, i| d.load[(s, i)]),
-        (Signal::CoulombApplied, Some(d)) => {
-            fill(column, at, |s, i| coulomb_sign(d.traj.qd()[(s, i)]))
-        }
+        (Signal::CoulombApplied, Some(_)) => fill(column, at, |s, i| coulomb_sign(band.qd[(s, i)])),
         (Signal::Own(0), Some(d)) => fill(column, at, |s, i| d.traj.qd()[(s, i)]),
         (Signal::Own(3), Some(_)) => fill(column, at, |_, _| 1.0),
         (Signal::Own(4), Some(d)) => fill(column, at, |s, i| d.traj.q()[(s, i)]),

@@ -182,7 +182,11 @@ impl Pipeline {
 
     /// The samples clear of filter transients: one cut-off period trimmed at
     /// each end when the recording is longer than eight periods.
-    fn clear_of_transients(settings: &Preprocess, len: usize, dt: f64) -> std::ops::Range<usize> {
+    pub fn clear_of_transients(
+        settings: &Preprocess,
+        len: usize,
+        dt: f64,
+    ) -> std::ops::Range<usize> {
         let trim = match settings.filter {
             Filter::Butterworth { cutoff_hz } => {
                 let period = (1.0 / (cutoff_hz * dt)).ceil() as usize;
