@@ -276,3 +276,68 @@ pub(super) fn rest_speeds(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::DMatrix;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+
+    /// 20 s at 1 kHz of a slow sine whose velocity is differentiated from
+    /// positions noisy to 1e-4 rad: the reversal band's at-rest speed is
+    /// within 30% of three deviations of its velocity noise (measured
+    /// against the noise-free velocity through the same filter; the
+    /// filter's ends and the motion band's share of the noise differ), and
+    /// the raw noise scaled as if it were white is about six times it.
+    #[test]
+    fn the_rest_speed_of_differentiated_positions_is_their_filtered_noise() {
+        let (len, dt): (usize, f64) = (20_000, 1e-3);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        // Box-Muller: a standard normal draw.
+        let mut normal = move || {
+            let u: f64 = rng.random::<f64>().max(1e-300);
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * rng.random::<f64>()).cos()
+        };
+        let t: Vec<f64> = (0..len).map(|k| k as f64 * dt).collect();
+        let clean = |t: f64| (std::f64::consts::TAU * 0.3 * t).sin();
+        let q: Vec<f64> = t.iter().map(|&t| clean(t) + 1e-4 * normal()).collect();
+        let differentiate = |x: &[f64]| -> Vec<f64> {
+            (0..len)
+                .map(|k| {
+                    let (a, b) = (k.saturating_sub(1), (k + 1).min(len - 1));
+                    (x[b] - x[a]) / ((b - a) as f64 * dt)
+                })
+                .collect()
+        };
+        let column = |v: Vec<f64>| DMatrix::from_column_slice(len, 1, &v);
+        let qd = column(differentiate(&q));
+        let raw = Trajectory::new(t.clone(), column(q), qd, None, DMatrix::zeros(len, 1)).unwrap();
+        let needs = Needs {
+            ripple: vec![None],
+            links: vec![],
+            tilt: false,
+            band_hz: 30.0,
+            motion_hz: 3.0,
+            places: vec![],
+        };
+        let band = velocity(&raw, &Preprocess::default(), &[0.0], &needs).unwrap();
+        let exact: Vec<f64> = t.iter().map(|&t| clean(t)).collect();
+        let filter = Preprocess {
+            filter: Filter::Butterworth { cutoff_hz: 30.0 },
+            ..Preprocess::default()
+        };
+        let noise_free = filter
+            .smooth_columns(&column(differentiate(&exact)), dt)
+            .unwrap();
+        let sigma = (&band.qd - noise_free).norm() / (len as f64).sqrt();
+        let white = rest_speeds(&raw, &band.qd, 30.0, &[0.0])[0];
+        assert!(
+            (band.rest[0] / (3.0 * sigma) - 1.0).abs() < 0.3,
+            "{} for 3 x {sigma}",
+            band.rest[0]
+        );
+        assert!(white > 4.0 * band.rest[0], "{white} vs {}", band.rest[0]);
+    }
+}
