@@ -14,8 +14,9 @@
 //! band's own pipeline, the same zero-phase Butterworth and parallel filter
 //! at ten times the cut-off, decimated to ten times that, the model's
 //! torque on the states [`super::band::states`] chooses (significance,
-//! sign, the breakaway's floor and the reported values). The refitted Coulomb and viscous values
-//! of the joint replace the motion stage's in the report.
+//! sign, the breakaway's floor and the reported values). The refitted
+//! Coulomb and viscous values of the joint replace the motion stage's in
+//! the report.
 
 use super::admit::physical;
 use super::band::{Needs, pipeline};
@@ -252,8 +253,8 @@ pub(super) fn stribeck(
 /// load and temperature, and it is what a smooth friction law's rounding
 /// at reversals leaves beside the model's sign(qd): on the independent
 /// suite's plain Coulomb friction (tanh(qd / 0.01) at 200-500 Hz) the
-/// reversal band fitted excesses of 1-5% of the level at the grid's
-/// slowest fades, where true breakaways were 50-100% of it.
+/// reversal band fitted excesses of 1-5% of the level, mostly at the
+/// grid's slowest fades, where true breakaways were 50-100% of it.
 const MIN_BREAKAWAY_SHARE: f64 = 0.1;
 
 /// The Coulomb level named on joint `j` among `trial`, in the fit `theta`.
