@@ -137,6 +137,13 @@ impl Moments {
         }
     }
 
+    /// Whether any of `columns` is nonzero on joint `j`'s rows: whether
+    /// the effect of those columns acts on joint `j`.
+    pub(super) fn acts_on(&self, columns: &[usize], j: usize) -> bool {
+        let nonzero = |xx: &DMatrix<f64>| columns.iter().any(|&k| xx[(k, k)] != 0.0);
+        self.xx.iter().any(|joints| nonzero(&joints[j]))
+    }
+
     /// The residual's sum of squares over the groups `keep` accepts.
     pub(super) fn residual_sum(&self, keep: impl Fn(usize) -> bool) -> f64 {
         let kept = self.rr.iter().enumerate().filter(|(g, _)| keep(*g));
