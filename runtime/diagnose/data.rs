@@ -218,6 +218,7 @@ pub(super) fn stack(
         inertial: all.inertial.into_iter().map(DVector::from_vec).collect(),
         tilt: tilted.map(|(shape, _)| (shape, all.tilt.map(DVector::from_vec))),
         measured_rate: DVector::from_vec(all.measured_rate),
+        measured_curvature: DVector::from_vec(all.measured_curvature),
         coulomb_levels: coulomb_levels(model),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
         stribeck: all.stribeck.into_iter().map(DVector::from_vec).collect(),

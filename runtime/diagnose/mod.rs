@@ -89,6 +89,7 @@ mod choose;
 mod com_hold;
 mod companion;
 pub mod data;
+mod delay;
 mod descent;
 mod diagnosis;
 use crate::digits;
@@ -217,6 +218,10 @@ pub fn diagnose(
     }
     sanity.findings.splice(0..0, misplaced);
     let mut chosen = choose(&data, &mut candidates, settings, size);
+    if let Some(note) = delay::second_order(&chosen.moments, &mut candidates, &chosen.selected) {
+        chosen = choose(&data, &mut candidates, settings, size);
+        chosen.notes.push(note);
+    }
     let harmonics = ripple::researched(&data, &candidates, &chosen.selected);
     if !harmonics.is_empty() {
         let changed = ripple::set_harmonics(&data, &mut candidates, &harmonics);

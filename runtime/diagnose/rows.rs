@@ -44,6 +44,8 @@ pub(super) struct Rows {
     /// d/dt of the measured torque (a delay's column: a torque logged late
     /// is, to first order, the torque minus the delay times its rate).
     pub(super) measured_rate: Vec<f64>,
+    /// d2/dt2 of the measured torque (a delay's second-order term).
+    pub(super) measured_curvature: Vec<f64>,
     /// Stribeck columns per velocity of `search::stribeck_velocities`
     /// (moving sign; the reversal stage only).
     pub(super) stribeck: Vec<Vec<f64>>,
@@ -63,6 +65,7 @@ pub(super) enum Signal {
     Generic(usize),
     Tilt(usize),
     MeasuredRate,
+    MeasuredCurvature,
     Stribeck(usize),
 }
 
@@ -103,7 +106,7 @@ impl Rows {
             .chain(own)
             .chain(generic)
             .chain(tilt)
-            .chain([MeasuredRate])
+            .chain([MeasuredRate, MeasuredCurvature])
             .chain(stribeck)
             .collect()
     }
@@ -131,6 +134,7 @@ impl Rows {
             Signal::Generic(k) => &mut self.generic[k],
             Signal::Tilt(k) => &mut self.tilt[k],
             Signal::MeasuredRate => &mut self.measured_rate,
+            Signal::MeasuredCurvature => &mut self.measured_curvature,
             Signal::Stribeck(k) => &mut self.stribeck[k],
         }
     }
@@ -172,6 +176,7 @@ impl Rows {
             Signal::Generic(k) => &self.generic[k],
             Signal::Tilt(k) => &self.tilt[k],
             Signal::MeasuredRate => &self.measured_rate,
+            Signal::MeasuredCurvature => &self.measured_curvature,
             Signal::Stribeck(k) => &self.stribeck[k],
         }
     }
@@ -200,6 +205,7 @@ impl Rows {
             generic: columns(generic),
             tilt: std::array::from_fn(column),
             measured_rate: column(0),
+            measured_curvature: column(0),
             stribeck: columns(stribeck),
         }
     }
@@ -238,6 +244,7 @@ impl Rows {
                 false => vec![0.0; self.tilt[k].len()],
             }),
             measured_rate: self.measured_rate.clone(),
+            measured_curvature: self.measured_curvature.clone(),
             stribeck: dry.stribeck,
         }
     }
