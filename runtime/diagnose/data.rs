@@ -322,6 +322,7 @@ fn recording_rows(
         &keep,
         (memory, RAW_BUDGET_BYTES),
     )?;
+    rows.measured_curvature = rate_over(&rows.measured_rate, &samples, dt, levers.len());
     Ok(Recorded {
         rows,
         rest: band.rest,
@@ -329,6 +330,25 @@ fn recording_rows(
         dt,
         non_finite: bad,
     })
+}
+
+/// The rate of a signal of kept rows (sample-major, `dof` per sample) over
+/// the kept `samples` (numbered at the period `dt`): central differences,
+/// one-sided at the ends.
+fn rate_over(values: &[f64], samples: &[usize], dt: f64, dof: usize) -> Vec<f64> {
+    let last = samples.len().saturating_sub(1);
+    let mut rate = vec![0.0; values.len()];
+    for k in 0..samples.len().min(values.len() / dof.max(1)) {
+        let (a, b) = (k.saturating_sub(1), (k + 1).min(last));
+        if a == b {
+            continue;
+        }
+        let span = (samples[b] - samples[a]) as f64 * dt;
+        for j in 0..dof {
+            rate[k * dof + j] = (values[b * dof + j] - values[a * dof + j]) / span;
+        }
+    }
+    rate
 }
 
 /// What [`recording_rows`] gives.

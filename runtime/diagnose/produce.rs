@@ -55,7 +55,6 @@ struct Derived<'a> {
     /// d/dt of the model torque and of the measured torque.
     rate: DMatrix<f64>,
     measured_rate: DMatrix<f64>,
-    measured_curvature: DMatrix<f64>,
     /// The model's gravity torque.
     load: DMatrix<f64>,
     accel: &'a DMatrix<f64>,
@@ -107,11 +106,9 @@ fn derived<'a>(model: &dyn Dynamics, traj: &'a Trajectory) -> anyhow::Result<Der
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
-    let measured_rate = torque_rate(traj.tau(), step(traj));
     Ok(Derived {
         rate: torque_rate(&predicted, step(traj)),
-        measured_curvature: torque_rate(&measured_rate, step(traj)),
-        measured_rate,
+        measured_rate: torque_rate(traj.tau(), step(traj)),
         predicted,
         load,
         accel,
@@ -506,9 +503,6 @@ fn single(
         // Without a tilted model its columns are zero.
         (Signal::Tilt(_), Some(_)) if inputs.tilted.is_none() => fill(column, at, |_, _| 0.0),
         (Signal::MeasuredRate, Some(d)) => fill(column, at, |s, i| d.measured_rate[(s, i)]),
-        (Signal::MeasuredCurvature, Some(d)) => {
-            fill(column, at, |s, i| d.measured_curvature[(s, i)])
-        }
         _ => {}
     }
 }

@@ -44,7 +44,10 @@ pub(super) struct Rows {
     /// d/dt of the measured torque (a delay's column: a torque logged late
     /// is, to first order, the torque minus the delay times its rate).
     pub(super) measured_rate: Vec<f64>,
-    /// d2/dt2 of the measured torque (a delay's second-order term).
+    /// d2/dt2 of the measured torque (a delay's second-order term): the
+    /// rate of `measured_rate` once filtered, not a produced signal (a
+    /// second difference of the raw torque leaves edge transients of the
+    /// raw noise over dt^2 that the filter's trim does not clear).
     pub(super) measured_curvature: Vec<f64>,
     /// Stribeck columns per velocity of `search::stribeck_velocities`
     /// (moving sign; the reversal stage only).
@@ -65,7 +68,6 @@ pub(super) enum Signal {
     Generic(usize),
     Tilt(usize),
     MeasuredRate,
-    MeasuredCurvature,
     Stribeck(usize),
 }
 
@@ -106,7 +108,7 @@ impl Rows {
             .chain(own)
             .chain(generic)
             .chain(tilt)
-            .chain([MeasuredRate, MeasuredCurvature])
+            .chain([MeasuredRate])
             .chain(stribeck)
             .collect()
     }
@@ -134,7 +136,6 @@ impl Rows {
             Signal::Generic(k) => &mut self.generic[k],
             Signal::Tilt(k) => &mut self.tilt[k],
             Signal::MeasuredRate => &mut self.measured_rate,
-            Signal::MeasuredCurvature => &mut self.measured_curvature,
             Signal::Stribeck(k) => &mut self.stribeck[k],
         }
     }
@@ -160,6 +161,11 @@ impl Rows {
             }
             *self.signal_mut(signal) = column;
         }
+        let curvature = parts.iter_mut().flat_map(|part| match consume {
+            true => std::mem::take(&mut part.measured_curvature),
+            false => part.measured_curvature.clone(),
+        });
+        self.measured_curvature = curvature.collect();
         self
     }
 
@@ -176,7 +182,6 @@ impl Rows {
             Signal::Generic(k) => &self.generic[k],
             Signal::Tilt(k) => &self.tilt[k],
             Signal::MeasuredRate => &self.measured_rate,
-            Signal::MeasuredCurvature => &self.measured_curvature,
             Signal::Stribeck(k) => &self.stribeck[k],
         }
     }
