@@ -65,19 +65,7 @@ mod tests {
         let residual = DVector::from_fn(samples, |s, _| logged(s)) - &model;
         let rate = DVector::from_fn(samples, |s, _| omega * (omega * (t(s) - delay)).cos());
         let curvature = DVector::from_fn(samples, |s, _| -omega * omega * logged(s));
-        let data = Stacked {
-            measured: DVector::from_fn(samples, |s, _| logged(s)),
-            residual,
-            angle: DVector::zeros(samples),
-            qd: DVector::zeros(samples),
-            qdd: DVector::zeros(samples),
-            gravity: DVector::zeros(samples),
-            generic: Vec::new(),
-            group: (0..samples).map(|s| s * 4 / samples).collect(),
-            dof: 1,
-            levers: vec![1.0],
-            rest: vec![0.02],
-        };
+        let data = Stacked::of_residual(residual, 1);
         let mut candidates = vec![
             Candidate {
                 joint: None,

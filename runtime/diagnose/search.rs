@@ -222,17 +222,9 @@ pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVec
     let qd = DVector::from_fn(samples, |s, _| 0.84 * (0.7 * t(s)).cos());
     let residual = DVector::from_fn(samples, |s, _| f(q[s], qd[s]));
     let data = Stacked {
-        measured: residual.clone(),
-        residual,
         angle: q.clone(),
         qd: qd.clone(),
-        qdd: DVector::zeros(samples),
-        gravity: DVector::zeros(samples),
-        generic: Vec::new(),
-        group: (0..samples).map(|s| s * 4 / samples).collect(),
-        dof: 1,
-        levers: vec![1.0],
-        rest: vec![0.02],
+        ..Stacked::of_residual(residual, 1)
     };
     (data, q, qd)
 }

@@ -27,6 +27,26 @@ pub(crate) struct Stacked {
 }
 
 impl Stacked {
+    /// Rows of `dof` joints with `residual` (also the measured torque) and
+    /// every signal zero, in four groups of equal length (unit tests).
+    #[cfg(test)]
+    pub(super) fn of_residual(residual: DVector<f64>, dof: usize) -> Stacked {
+        let rows = residual.len();
+        Stacked {
+            measured: residual.clone(),
+            residual,
+            angle: DVector::zeros(rows),
+            qd: DVector::zeros(rows),
+            qdd: DVector::zeros(rows),
+            gravity: DVector::zeros(rows),
+            generic: Vec::new(),
+            group: (0..rows).map(|r| r * 4 / rows).collect(),
+            dof,
+            levers: vec![1.0; dof],
+            rest: vec![0.02; dof],
+        }
+    }
+
     /// The rows of joint `joint` (rows are (sample, joint) pairs).
     pub(super) fn rows_of(&self, joint: usize) -> impl Iterator<Item = usize> + Clone + '_ {
         (joint..self.residual.len()).step_by(self.dof)

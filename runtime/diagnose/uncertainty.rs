@@ -333,20 +333,7 @@ mod tests {
                 residual[2 * s + j] = 0.5 * shape(s) + sigma * noise();
             }
         }
-        let zeros = DVector::zeros(2 * samples);
-        let data = Stacked {
-            measured: residual.clone(),
-            residual,
-            angle: zeros.clone(),
-            qd: zeros.clone(),
-            qdd: zeros.clone(),
-            gravity: zeros,
-            generic: Vec::new(),
-            group: (0..2 * samples).map(|r| r * 4 / (2 * samples)).collect(),
-            dof: 2,
-            levers: vec![1.0; 2],
-            rest: vec![0.02; 2],
-        };
+        let data = Stacked::of_residual(residual, 2);
         let candidates: Vec<Candidate> = (0..2)
             .map(|j| Candidate {
                 kind: Kind::ViscousFriction,

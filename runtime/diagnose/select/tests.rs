@@ -109,19 +109,7 @@ fn a_cut_that_only_frees_a_shared_effect_names_nothing() {
         (s, 0) => shared[r] + 0.01 * own[r] + noise(s, 0.1),
         (s, _) => shared[r] + noise(s + samples, 1e-4),
     });
-    let data = Stacked {
-        measured: residual.clone(),
-        residual,
-        angle: DVector::zeros(rows),
-        qd: DVector::zeros(rows),
-        qdd: DVector::zeros(rows),
-        gravity: DVector::zeros(rows),
-        generic: Vec::new(),
-        group: (0..rows).map(|r| r * 4 / rows).collect(),
-        dof: 2,
-        levers: vec![1.0; 2],
-        rest: vec![0.02; 2],
-    };
+    let data = Stacked::of_residual(residual, 2);
     let shared = Candidate {
         joint: None,
         ..candidate(Kind::TorqueDelay, shared)
