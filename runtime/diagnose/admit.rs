@@ -342,7 +342,7 @@ fn plausible_data_effect(
             "a torque scale error",
         ),
         Kind::TorqueDelay => {
-            let Shape::Delay { sample_period, .. } = candidate.shape else {
+            let Shape::Delay { sample_period } = candidate.shape else {
                 return Ok(());
             };
             // A torque read early by up to a sample is the logging

@@ -115,9 +115,8 @@ pub(super) struct Columns {
     /// tilted base), when the model has a description and gravity: the
     /// shape with the directions, and the three columns.
     pub(super) tilt: Option<(Shape, [DVector<f64>; 3])>,
-    /// d/dt of the measured torque, and d2/dt2.
+    /// d/dt of the measured torque.
     pub(super) measured_rate: DVector<f64>,
-    pub(super) measured_curvature: DVector<f64>,
     /// The model's Coulomb friction level per joint.
     pub(super) coulomb_levels: Vec<f64>,
     /// The longest sample period of the raw recordings, s.
@@ -170,7 +169,6 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         mut inertial,
         tilt,
         measured_rate,
-        measured_curvature,
         coulomb_levels,
         sample_period,
         stribeck,
@@ -300,10 +298,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
     };
     if wanted((Kind::TorqueDelay, None, None)) {
         list.push(Candidate {
-            shape: Shape::Delay {
-                sample_period,
-                curvature: measured_curvature,
-            },
+            shape: Shape::Delay { sample_period },
             ..whole(Kind::TorqueDelay, vec!["delay"], vec![-measured_rate])
         });
     }

@@ -10,7 +10,7 @@ use super::settings::Settings;
 use super::stacked::{EXTENT_MARGIN, Layout, Link, Stacked};
 use crate::dynamics::Dynamics;
 use crate::oracle::Model;
-use crate::preprocess::{Filter, Pipeline, Preprocess, step};
+use crate::preprocess::{Filter, Pipeline, Preprocess, central_difference, step};
 use crate::trajectory::Trajectory;
 
 /// Shortest cross-validation segment, s.
@@ -206,6 +206,7 @@ pub(super) fn stack(
         qd: vector(all.qd),
         qdd: vector(all.qdd),
         gravity: vector(all.gravity),
+        measured_curvature: vector(all.measured_curvature),
         generic: all.generic.into_iter().map(DVector::from_vec).collect(),
         group,
         dof: n,
@@ -218,7 +219,6 @@ pub(super) fn stack(
         inertial: all.inertial.into_iter().map(DVector::from_vec).collect(),
         tilt: tilted.map(|(shape, _)| (shape, all.tilt.map(DVector::from_vec))),
         measured_rate: DVector::from_vec(all.measured_rate),
-        measured_curvature: DVector::from_vec(all.measured_curvature),
         coulomb_levels: coulomb_levels(model),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
         stribeck: all.stribeck.into_iter().map(DVector::from_vec).collect(),
@@ -333,19 +333,20 @@ fn recording_rows(
 }
 
 /// The rate of a signal of kept rows (sample-major, `dof` per sample) over
-/// the kept `samples` (numbered at the period `dt`): central differences,
-/// one-sided at the ends.
+/// the kept `samples` (numbered at the period `dt`, evenly spaced: a range
+/// stepped by the decimation), by [`central_difference`] per joint.
 fn rate_over(values: &[f64], samples: &[usize], dt: f64, dof: usize) -> Vec<f64> {
-    let last = samples.len().saturating_sub(1);
     let mut rate = vec![0.0; values.len()];
-    for k in 0..samples.len().min(values.len() / dof.max(1)) {
-        let (a, b) = (k.saturating_sub(1), (k + 1).min(last));
-        if a == b {
-            continue;
-        }
-        let span = (samples[b] - samples[a]) as f64 * dt;
-        for j in 0..dof {
-            rate[k * dof + j] = (values[b * dof + j] - values[a * dof + j]) / span;
+    let (Some(&first), Some(&second)) = (samples.first(), samples.get(1)) else {
+        return rate;
+    };
+    let step = (second - first) as f64 * dt;
+    for j in 0..dof {
+        let column: Vec<f64> = values.iter().skip(j).step_by(dof).copied().collect();
+        if let Ok(d) = central_difference(&column, step) {
+            for (k, v) in d.into_iter().enumerate() {
+                rate[k * dof + j] = v;
+            }
         }
     }
     rate

@@ -10,14 +10,16 @@
 //! -tau' - (d/2) tau'' at the fitted `d`, still linear in d, and the
 //! selection runs again.
 
-use super::candidate::{Candidate, Shape, width};
+use super::candidate::{Candidate, width};
 use super::fit::fit;
 use super::kind::Kind;
 use super::moments::Moments;
+use super::stacked::Stacked;
 
 /// Gives the named delay of `selected` its second-order term at the
 /// fitted delay; the note to give when it did.
 pub(super) fn second_order(
+    data: &Stacked,
     m: &Moments,
     candidates: &mut [Candidate],
     selected: &[usize],
@@ -28,12 +30,8 @@ pub(super) fn second_order(
     let fitted = fit(m, candidates, selected, |_| true)?;
     let offset: usize = selected[..at].iter().map(|&c| width(&candidates[c])).sum();
     let delay = fitted.theta[offset];
-    let candidate = &mut candidates[selected[at]];
-    let Shape::Delay { curvature, .. } = &candidate.shape else {
-        return None;
-    };
-    let column = &candidate.columns[0] - curvature * (0.5 * delay);
-    candidate.columns[0] = column;
+    let column = &mut candidates[selected[at]].columns[0];
+    *column -= &data.measured_curvature * (0.5 * delay);
     Some(format!(
         "torque_delay: fitted again with its second-order term (half the delay times the \
          torque's second rate) at the first fit's {:.2} ms, and the effects chosen again",
@@ -46,8 +44,7 @@ mod tests {
     use nalgebra::DVector;
 
     use super::*;
-    use crate::diagnose::candidate::linear;
-    use crate::diagnose::stacked::Stacked;
+    use crate::diagnose::candidate::{Shape, linear};
 
     /// One joint whose torque, sin(omega t) at 1 Hz, is logged 50 ms late
     /// (omega d = 0.31), fitted with a delay and a torque scale: to first
@@ -65,14 +62,14 @@ mod tests {
         let residual = DVector::from_fn(samples, |s, _| logged(s)) - &model;
         let rate = DVector::from_fn(samples, |s, _| omega * (omega * (t(s) - delay)).cos());
         let curvature = DVector::from_fn(samples, |s, _| -omega * omega * logged(s));
-        let data = Stacked::of_residual(residual, 1);
+        let data = Stacked {
+            measured_curvature: curvature,
+            ..Stacked::of_residual(residual, 1)
+        };
         let mut candidates = vec![
             Candidate {
                 joint: None,
-                shape: Shape::Delay {
-                    sample_period: dt,
-                    curvature,
-                },
+                shape: Shape::Delay { sample_period: dt },
                 ..linear(Kind::TorqueDelay, -rate)
             },
             linear(Kind::TorqueScale, model),
@@ -85,7 +82,7 @@ mod tests {
         let (_, first_scale) = fitted(&candidates);
         assert!(first_scale.abs() > 0.04, "{first_scale}");
         let m = Moments::new(&data, &candidates);
-        assert!(second_order(&m, &mut candidates, &[0, 1]).is_some());
+        assert!(second_order(&data, &m, &mut candidates, &[0, 1]).is_some());
         let (second, second_scale) = fitted(&candidates);
         assert!(
             second_scale.abs() < 0.1 * first_scale.abs(),

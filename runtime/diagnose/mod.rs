@@ -218,7 +218,8 @@ pub fn diagnose(
     }
     sanity.findings.splice(0..0, misplaced);
     let mut chosen = choose(&data, &mut candidates, settings, size);
-    if let Some(note) = delay::second_order(&chosen.moments, &mut candidates, &chosen.selected) {
+    let named = &chosen.selected;
+    if let Some(note) = delay::second_order(&data, &chosen.moments, &mut candidates, named) {
         chosen = choose(&data, &mut candidates, settings, size);
         chosen.notes.push(note);
     }

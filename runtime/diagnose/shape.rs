@@ -3,7 +3,7 @@
 //! link's standard inertial parameters: a point mass's, and whether ten of
 //! them are a physical body.
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, Vector3};
 
 /// Parameters -> column coefficients.
 #[derive(Debug, Clone)]
@@ -21,13 +21,8 @@ pub(super) enum Shape {
     },
     /// Linear, a delay (s): one parameter, named only beyond
     /// `sample_period` (a torque held over the sample interval reads half
-    /// a sample early: the logging convention, not a delay). `curvature`:
-    /// the measured torque's second rate on every row, the delay's
-    /// second-order term (see `super::delay`).
-    Delay {
-        sample_period: f64,
-        curvature: DVector<f64>,
-    },
+    /// a sample early: the logging convention, not a delay).
+    Delay { sample_period: f64 },
     /// Linear, a direction-dependent dry friction (N m): admissible only on
     /// a joint with Coulomb friction, modelled (`modelled_coulomb`) or named
     /// (a friction level cannot go negative in one direction).

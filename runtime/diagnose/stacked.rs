@@ -14,6 +14,9 @@ pub(crate) struct Stacked {
     pub(super) qdd: DVector<f64>,
     /// The model's gravity torque.
     pub(super) gravity: DVector<f64>,
+    /// d2/dt2 of the measured torque (a delay's second-order term, see
+    /// `super::delay`).
+    pub(super) measured_curvature: DVector<f64>,
     /// Own-joint features ([`GENERIC_FEATURES`]), filtered like the columns.
     pub(super) generic: Vec<DVector<f64>>,
     pub(super) group: Vec<usize>,
@@ -39,6 +42,7 @@ impl Stacked {
             qd: DVector::zeros(rows),
             qdd: DVector::zeros(rows),
             gravity: DVector::zeros(rows),
+            measured_curvature: DVector::zeros(rows),
             generic: Vec::new(),
             group: (0..rows).map(|r| r * 4 / rows).collect(),
             dof,
