@@ -103,6 +103,7 @@ mod identify;
 mod kind;
 mod modelled;
 mod moments;
+mod named;
 mod nearest;
 mod payload_body;
 pub mod plots;
@@ -131,15 +132,14 @@ mod whole;
 use crate::dynamics::Dynamics;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
-use candidate::label;
 use choose::{Chosen, choose};
 pub use data::segment_counts;
 use data::{reject_duplicates, stack};
 pub use diagnosis::{Diagnosis, Effect, Regimes, ResidualSamples};
-use heldout::{Scoring, cv_mse, cv_mse_per_joint};
 pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
-use report::{describe, per_joint, regimes, residual_samples, residual_share};
+use named::{Described, Named};
+use report::{per_joint, regimes, residual_samples, residual_share};
 pub use sanity::{
     Check, Exchange, Exchanged, Finding, Gated, Refusal, Sanity, positions as checks_as_logged,
     refuse,
@@ -237,74 +237,40 @@ pub fn diagnose(
         alternatives,
         second_moments,
     } = chosen;
-    let bias = |selected: &[usize], supported: &[supported::Supported]| {
-        let width = selected
-            .iter()
-            .map(|&c| candidate::width(&candidates[c]))
-            .sum();
-        let timing = supported::timing_shift(&moments, &candidates, selected);
-        supported::bias(supported, timing, width)
-    };
     let motion = reversals::Motion {
         candidates: &candidates,
         selected: &selected,
         rows: &kept,
     };
-    let stribeck = stribeck::at_reversals(model, recordings, pipeline, settings, motion)?;
-    let alternatives: Vec<_> = alternatives
-        .into_iter()
-        .filter(|a| selected.contains(&a.named))
-        .collect();
-    notes.extend(
-        alternatives
-            .iter()
-            .map(|a| alternatives::note(&candidates, a)),
-    );
-    let dry_pairs = dry::offset_or_asymmetry(&data, &candidates, &selected, &mut notes);
-    let mse_before = cv_mse_per_joint(&moments, data.dof, &candidates, &[]);
-    let mse_after = cv_mse_per_joint(&moments, data.dof, &candidates, &selected);
-    let mse_after_fitted = cv_mse(&moments, data.dof, &candidates, &selected, Scoring::Fitted);
-    let mut effects = describe(
-        &moments,
-        &candidates,
-        &selected,
-        settings.com_resolution * size,
-        &bias(&selected, &supported),
-        &mut notes,
-    );
-    for (effect, &c) in effects.iter_mut().zip(&selected) {
-        let mut beside: Vec<usize> = Vec::new();
-        let others = alternatives
-            .iter()
-            .filter(|a| a.named == c)
-            .map(|a| a.runner_up);
-        for r in others.chain(dry_pairs.iter().filter(|p| p.0 == c).map(|p| p.1)) {
-            if !beside.contains(&r) {
-                beside.push(r);
-            }
-        }
-        effect.ambiguous_with = beside.iter().map(|&r| label(&candidates[r])).collect();
-        effect.unconstrained = unconstrained::unconstrained(
-            &moments,
-            &candidates,
-            &selected,
-            &mse_after,
-            c,
+    let named = Named {
+        data: &data,
+        moments: &moments,
+        candidates: &candidates,
+        selected: &selected,
+    };
+    // The reversal stage refits the named effects on its own pipeline; the
+    // motion stage's effects are described meanwhile on the other core.
+    let (stribeck, described) = std::thread::scope(|scope| {
+        let reversal =
+            scope.spawn(|| stribeck::at_reversals(model, recordings, pipeline, settings, motion));
+        let described = named.describe(
+            (alternatives, &supported, &second_moments),
             settings,
+            size,
             &mut notes,
         );
-    }
-    for &c in selected.iter().filter(|c| second_moments.contains(c)) {
-        notes.push(format!(
-            "{}: the link's origin does not accelerate in these motions (it lies on the axes of \
-             the joints that move it), so its mass acts only through its second moments: mass \
-             and COM are fitted with the link's inertia about its COM held as modelled; if that \
-             inertia is wrong too, so is the mass (the mass and COM estimates correlate strongly, \
-             see identifiability)",
-            label(&candidates[c])
-        ));
-    }
-    stribeck::merge(stribeck, &mut effects, &mut notes);
+        let found = reversal
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (found, described)
+    });
+    let Described {
+        mut effects,
+        mse_before,
+        mse_after,
+        mse_after_fitted,
+    } = described;
+    stribeck::merge(stribeck?, &mut effects, &mut notes);
     modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);
