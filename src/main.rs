@@ -2,6 +2,13 @@
 
 use std::process::ExitCode;
 
+// mimalloc keeps freed pages for the next allocation: the diagnosis builds
+// and drops full-rate columns of megabytes, and the system allocator
+// returned each to the kernel, so every new one paid its page faults again
+// (a sixth of a 3-DOF diagnosis's time; docs/diagnosis-measured.md, Speed).
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     restore_sigpipe();
     remove_temporaries_on_interrupt();
