@@ -25,9 +25,14 @@ pub struct Corrections {
 impl Corrections {
     /// The data corrections a diagnosis reports.
     pub fn diagnosed(diagnosis: &crate::diagnose::Diagnosis) -> Corrections {
+        Corrections::named(&diagnosis.effects)
+    }
+
+    /// The data corrections among named effects.
+    pub fn named(effects: &[crate::diagnose::Effect]) -> Corrections {
         use crate::diagnose::Kind;
         let mut out = Corrections::default();
-        for e in &diagnosis.effects {
+        for e in effects {
             let value = |name: &str| e.parameters.get(name).and_then(|v| v.as_f64());
             match (e.kind, e.joint, value("scale"), value("delay")) {
                 (Kind::TorqueScale, Some(j), Some(scale), _) => out.scales.push((j, scale)),

@@ -82,6 +82,7 @@
 
 mod admit;
 mod alternatives;
+mod applied_units;
 pub mod apply;
 mod band;
 mod candidate;
@@ -271,6 +272,9 @@ pub fn diagnose(
         mse_after_fitted,
     } = described;
     stribeck::merge(stribeck?, &mut effects, &mut notes);
+    let resolution = settings.com_resolution * size;
+    let mut supported = supported::listed(&candidates, &supported, resolution);
+    applied_units::in_applied_units(&mut effects, &mut supported, &mut notes);
     modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);
@@ -299,7 +303,7 @@ pub fn diagnose(
         mse_after,
         mse_after_fitted,
         effects,
-        supported: supported::listed(&candidates, &supported, settings.com_resolution * size),
+        supported,
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         sanity,

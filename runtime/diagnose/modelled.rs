@@ -67,21 +67,10 @@ fn value(e: &JointEffects, key: &str) -> f64 {
 /// Fills `modelled` and `total` of every named joint effect the model
 /// already has (some of its values not zero; a spring's rest alone is not
 /// a spring).
-/// On a joint with a named torque scale s the total takes the correction
-/// divided by s, as `--apply` writes it (the model meets the logged torque
-/// divided by s).
+/// On a joint with a named torque scale the correction is in the robot's
+/// torque already (`applied_units`), as `--apply` writes it.
 pub(super) fn add_totals(effects: &mut [Effect], modelled: &[JointEffects]) {
-    let scales: Vec<(Option<usize>, f64)> = effects
-        .iter()
-        .filter(|e| e.kind == Kind::TorqueScale)
-        .filter_map(|e| Some((e.joint, e.parameters.get("scale")?.as_f64()?)))
-        .collect();
     for effect in effects {
-        let per_scale: f64 = scales
-            .iter()
-            .filter(|(j, _)| *j == effect.joint)
-            .map(|(_, s)| 1.0 / s)
-            .product();
         let pairs = additive(effect.kind);
         let Some(model) = effect.joint.and_then(|j| modelled.get(j - 1)) else {
             continue;
@@ -92,15 +81,7 @@ pub(super) fn add_totals(effects: &mut [Effect], modelled: &[JointEffects]) {
         if !present {
             continue;
         }
-        let fitted = |name: &str| {
-            let value = effect.parameters.get(name).and_then(Value::as_f64)?;
-            // The rest angle is an angle, not a torque: never scaled.
-            Some(if name == "rest" {
-                value
-            } else {
-                value * per_scale
-            })
-        };
+        let fitted = |name: &str| effect.parameters.get(name).and_then(Value::as_f64);
         let (mut was, mut total) = (Map::new(), Map::new());
         for &(name, key) in pairs {
             let Some(correction) = fitted(name) else {

@@ -30,24 +30,15 @@ pub fn apply_to_text(
         .trim_start_matches('\u{feff}')
         .parse()
         .context("the description is not valid TOML")?;
-    let scales = crate::corrections::Corrections::diagnosed(diagnosis).scales;
+    // A joint's effects are in the robot's torque already, on a joint with
+    // a torque scale too (`applied_units`): written as reported.
     for effect in &diagnosis.effects {
-        // On a joint whose logged torque is s times the applied one, the
-        // fit's joint effects are in logged units: evaluate divides the
-        // logged torque by s (`--torque-scale`), so the TOML takes them
-        // divided by s, and the corrected recording and the model agree.
-        let per_scale: f64 = scales
-            .iter()
-            .filter(|&&(j, _)| Some(j) == effect.joint)
-            .map(|(_, s)| 1.0 / s)
-            .product();
         let value = |name: &str| {
             effect
                 .parameters
                 .get(name)
                 .and_then(serde_json::Value::as_f64)
         };
-        let scaled = |name: &str| value(name).map(|v| v * per_scale);
         match (effect.kind, effect.joint) {
             (Kind::Payload, _) => {
                 let mass = value("mass").context("payload without mass")?;
@@ -142,13 +133,13 @@ pub fn apply_to_text(
             (Kind::TorqueScale | Kind::TorqueDelay, _) => {}
             (Kind::JointSpring, Some(joint)) => {
                 let name = joints.get(joint - 1).context("joint index out of range")?;
-                let stiffness = scaled("stiffness").context("spring without stiffness")?;
+                let stiffness = value("stiffness").context("spring without stiffness")?;
                 let rest = value("rest").context("spring without rest angle")?;
                 add_spring(&mut doc, name, stiffness, rest)?;
             }
             (Kind::StribeckFriction, Some(joint)) => {
                 let name = joints.get(joint - 1).context("joint index out of range")?;
-                let excess = scaled("excess").context("Stribeck friction without excess")?;
+                let excess = value("excess").context("Stribeck friction without excess")?;
                 let velocity = value("velocity").context("Stribeck friction without velocity")?;
                 add_shaped(
                     &mut doc,
@@ -160,8 +151,8 @@ pub fn apply_to_text(
             (Kind::TorqueRipple, Some(joint)) => {
                 let name = joints.get(joint - 1).context("joint index out of range")?;
                 let amplitudes = [
-                    ("ripple_sin", scaled("sin").context("ripple without sin")?),
-                    ("ripple_cos", scaled("cos").context("ripple without cos")?),
+                    ("ripple_sin", value("sin").context("ripple without sin")?),
+                    ("ripple_cos", value("cos").context("ripple without cos")?),
                 ];
                 let cycles = value("cycles").context("ripple without cycles")?;
                 add_shaped(&mut doc, name, &amplitudes, ("ripple_cycles", cycles))?;
@@ -191,7 +182,7 @@ pub fn apply_to_text(
                     &mut doc,
                     name,
                     key,
-                    scaled(parameter).context("missing parameter")?,
+                    value(parameter).context("missing parameter")?,
                 )?;
             }
             (kind, None) => bail!("{kind:?} has no joint"),

@@ -323,11 +323,11 @@ fn a_ripple_correction_adds_and_keeps_the_harmonic_as_written() {
     );
 }
 
-/// The fit's joint effects on a joint with a torque scale s are in logged
-/// units; evaluate divides the logged torque by s, so the TOML takes them
-/// divided by s (a spring's rest angle stays as fitted).
+/// On a joint with a torque scale the report gives the effects in the
+/// robot's torque (`applied_units`): the TOML takes them as reported, and
+/// the totals add them to the model's as they are.
 #[test]
-fn a_scaled_joints_effects_are_written_in_applied_units() {
+fn a_scaled_joints_effects_are_written_as_reported() {
     let d = diagnosis(vec![
         effect(
             Kind::TorqueScale,
@@ -337,16 +337,16 @@ fn a_scaled_joints_effects_are_written_in_applied_units() {
         effect(
             Kind::ViscousFriction,
             Some(1),
-            serde_json::json!({"coefficient": 0.5}),
+            serde_json::json!({"coefficient": 0.4}),
         ),
         effect(
             Kind::JointSpring,
             Some(1),
-            serde_json::json!({"stiffness": 2.5, "rest": 0.3}),
+            serde_json::json!({"stiffness": 2.0, "rest": 0.3}),
         ),
     ]);
     let out = apply_to_text(SOURCE, &d, &["j1"], "a").unwrap();
-    // 0.1 + 0.5 / 1.25 and 2.5 / 1.25 about 0.3.
+    // 0.1 + 0.4, and 2.0 about 0.3.
     assert!(out.contains("viscous = 0.5"), "{out}");
     assert!(out.contains("spring = 2.0"), "{out}");
     assert!(out.contains("spring_rest = 0.3"), "{out}");
