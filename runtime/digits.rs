@@ -2,15 +2,32 @@
 
 /// Three significant digits, without exponent for everyday magnitudes.
 pub fn sig(x: f64) -> String {
+    significant(x, 3)
+}
+
+/// `digits` significant digits, without exponent for everyday magnitudes.
+fn significant(x: f64, digits: i32) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
     let magnitude = x.abs().log10().floor() as i32;
     if !(-4..6).contains(&magnitude) {
-        return format!("{x:.2e}");
+        let decimals = (digits - 1) as usize;
+        return format!("{x:.decimals$e}");
     }
-    let decimals = (2 - magnitude).max(0) as usize;
+    let decimals = (digits - 1 - magnitude).max(0) as usize;
     format!("{x:.decimals$}")
+}
+
+/// Two numbers (an interval's ends, a before and an after), with three
+/// significant digits or as many more (up to six) as it takes to print
+/// them apart: an interval narrower than the third digit does not read as
+/// a point.
+pub fn apart(a: f64, b: f64) -> (String, String) {
+    (3..=6)
+        .map(|d| (significant(a, d), significant(b, d)))
+        .find(|(x, y)| x != y || a == b)
+        .unwrap_or_else(|| (significant(a, 6), significant(b, 6)))
 }
 
 #[cfg(test)]
@@ -24,5 +41,15 @@ mod tests {
         assert_eq!(sig(1234.5), "1234");
         assert_eq!(sig(-0.000_123_4), "-0.000123");
         assert_eq!(sig(2.5e-9), "2.50e-9");
+    }
+
+    #[test]
+    fn two_numbers_are_printed_apart() {
+        let own = |a: &str, b: &str| (a.to_string(), b.to_string());
+        assert_eq!(apart(0.398, 0.437), own("0.398", "0.437"));
+        assert_eq!(apart(0.14987, 0.14994), own("0.14987", "0.14994"));
+        assert_eq!(apart(0.15, 0.15), own("0.150", "0.150"));
+        assert_eq!(apart(-2.5e-9, 2.5e-9), own("-2.50e-9", "2.50e-9"));
+        assert_eq!(apart(1.0, 1.0 + 1e-12), own("1.00000", "1.00000"));
     }
 }

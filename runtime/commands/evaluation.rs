@@ -7,7 +7,8 @@ use crate::trajectory::Trajectory;
 
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
-    /// Compiled model (the analytical model, or the nominal model with --nn).
+    /// The model: a compiled model's name or a TOML description (the
+    /// analytical model, or the nominal model with --nn).
     #[arg(long, default_value = DEFAULT_NOMINAL)]
     pub model: String,
     /// Measured CSV files.

@@ -295,7 +295,8 @@ pub fn preprocess(args: &PreprocessArgs) -> Result<()> {
 
 #[derive(Debug, Args)]
 pub struct SynthArgs {
-    /// Compiled model that produces the torques.
+    /// The model that produces the torques: a compiled model's name or a
+    /// TOML description.
     #[arg(long, default_value = DEFAULT_NOMINAL)]
     pub model: String,
     /// Measured CSV files (preprocessed here unless --preprocessed).

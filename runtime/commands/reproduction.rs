@@ -348,7 +348,7 @@ pub(super) fn commit_folder(staged: StagedFolder, out: &Path) -> Result<()> {
 
 #[derive(Debug, Args)]
 pub struct StudyArgs {
-    /// Compiled model (the analytical model).
+    /// The analytical model: a compiled model's name or a TOML description.
     #[arg(long)]
     pub model: String,
     /// Measured CSV recordings.

@@ -189,15 +189,15 @@ pub(super) fn note(candidates: &[Candidate], alternative: &Alternative) -> Strin
         &candidates[alternative.named],
         &candidates[alternative.runner_up],
     );
+    let (runner_up, named_mse) =
+        crate::digits::apart(alternative.runner_up_mse, alternative.named_mse);
     format!(
         "{} is ambiguous with {}: in its place the other leaves joint {}'s held-out MSE at \
-         {:.4} N m^2 instead of {:.4} and explains the same structure, so these data barely tell \
-         them apart{}",
+         {runner_up} N m^2 instead of {named_mse} and explains the same structure, so these data \
+         barely tell them apart{}",
         label(named),
         label(other),
         alternative.joint + 1,
-        alternative.runner_up_mse,
-        alternative.named_mse,
         hint(named.kind, other.kind)
     )
 }

@@ -67,9 +67,10 @@ pub(super) fn complete_friction(
             notes.retain(|n| !n.starts_with(&this));
             notes.push(format!(
                 "{}: named beside the joint's Coulomb friction (the friction law's second \
-                 term, not held to the {:.0}% gain a new effect needs): \
-                 significant and physical, it cuts the joint's held-out MSE by {:.1}% and in {} \
-                 of {} segments; without it the Coulomb level absorbs it",
+                 term, not held to the {:.0}% gain a new effect needs): significant and \
+                 physical, it cuts the held-out MSE the joint has without it by {:.1}% (the \
+                 table's share is of the MSE before the diagnosis), in {} of {} segments; \
+                 without it the Coulomb level absorbs it",
                 label(&candidates[viscous]),
                 100.0 * settings.min_gain,
                 100.0 * cut.share,

@@ -149,8 +149,10 @@ impl Diagnosis {
         if hidden + pairs > 0 {
             let _ = writeln!(
                 out,
-                "{hidden} more notes and {pairs} pairs of parameters the data barely tell apart: \
-                 --verbose (or --format json)"
+                "{hidden} more {} and {pairs} {} of parameters the data barely tell apart: \
+                 --verbose (or --format json)",
+                if hidden == 1 { "note" } else { "notes" },
+                if pairs == 1 { "pair" } else { "pairs" },
             );
         }
     }
@@ -219,7 +221,7 @@ impl Diagnosis {
     fn effect_row(&self, e: &Effect) -> String {
         let place = match (e.joint, &e.link) {
             (Some(j), _) => format!("joint {j}"),
-            (None, Some(link)) => format!("link {link}"),
+            (None, Some(link)) => format!("link `{link}`"),
             (None, None) => "all joints".to_string(),
         };
         let ambiguous = ambiguous_text(e);
@@ -354,11 +356,8 @@ fn interval_text(v: &serde_json::Value) -> String {
     };
     let pair = |p: &serde_json::Value| -> Option<String> {
         let p = p.as_array()?;
-        Some(format!(
-            "{} .. {}",
-            sig(p.first()?.as_f64()?),
-            sig(p.get(1)?.as_f64()?)
-        ))
+        let (low, high) = crate::digits::apart(p.first()?.as_f64()?, p.get(1)?.as_f64()?);
+        Some(format!("{low} .. {high}"))
     };
     if items.first().is_some_and(|x| x.is_number()) {
         return pair(v).map_or(String::new(), |p| format!(" (95% CI {p})"));

@@ -111,6 +111,11 @@ fn reports_header_problems() {
         msg.contains("unexpected column 'temp'") && msg.contains("--ignore-column temp"),
         "{msg}"
     );
+    assert!(msg.contains("--column temp=NAME"), "{msg}");
+    let msg = read_err("named", "t,q1,qd1,torque1\n0,1,1,1\n1,1,1,1\n", &opts);
+    assert!(msg.contains("--column torque1=tau1"), "{msg}");
+    let msg = read_err("effort", "time_s,q1,qd1,joint_effort_1\n0,1,1,1\n", &opts);
+    assert!(msg.contains("--column time_s=t"), "{msg}");
     let msg = read_err("spaced", "t,q1,qd1,tau1,motor temp\n0,1,1,1,1\n", &opts);
     assert!(msg.contains("--ignore-column 'motor temp'"), "{msg}");
     let msg = read_err("semicolons", "t;q1;qd1;tau1\n0;1;1;1\n1;1;1;1\n", &opts);
