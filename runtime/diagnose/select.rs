@@ -7,7 +7,7 @@ use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, 
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::companion::complete_friction;
 use super::fit::{fit, identifiability};
-use super::gain::{Gain, relative_gain};
+use super::gain::{Gain, relative_gain, worse_than_before};
 use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
 use super::moments::Moments;
@@ -232,6 +232,19 @@ fn forward(
         trial.push(c);
         if gain.share < settings.min_gain {
             break;
+        }
+        if let Some((joint, factor)) = worse_than_before(&mse, initial) {
+            steps.notes.push(format!(
+                "{}: {} at this step, but it leaves joint {}'s at {:.1} times its held-out MSE \
+                 before the diagnosis, a fit trading one joint's structure for another's; not \
+                 named",
+                label(&candidates[c]),
+                gain.would_cut(),
+                joint + 1,
+                factor
+            ));
+            steps.refused.push(c);
+            continue;
         }
         let Some(full) = fit(m, candidates, &trial, |_| true) else {
             break;
