@@ -6,7 +6,7 @@ pub fn sig(x: f64) -> String {
 }
 
 /// `digits` significant digits, without exponent for everyday magnitudes.
-fn significant(x: f64, digits: i32) -> String {
+pub fn significant(x: f64, digits: i32) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
@@ -19,15 +19,22 @@ fn significant(x: f64, digits: i32) -> String {
     format!("{x:.decimals$}")
 }
 
-/// Two numbers (an interval's ends, a before and an after), with three
-/// significant digits or as many more (up to six) as it takes to print
-/// them apart: an interval narrower than the third digit does not read as
-/// a point.
+/// The significant digits, three or as many more (up to six) as it takes
+/// to print `a` and `b` as different numbers: an interval narrower than
+/// the third digit does not read as a point.
+pub fn needed(a: f64, b: f64) -> i32 {
+    let differ = |d: i32| {
+        let read = |x: f64| significant(x, d).parse::<f64>().ok();
+        read(a) != read(b)
+    };
+    (3..=6).find(|&d| a == b || differ(d)).unwrap_or(6)
+}
+
+/// Two numbers (an interval's ends, a before and an after) with the
+/// digits [`needed`] to print them apart.
 pub fn apart(a: f64, b: f64) -> (String, String) {
-    (3..=6)
-        .map(|d| (significant(a, d), significant(b, d)))
-        .find(|(x, y)| x != y || a == b)
-        .unwrap_or_else(|| (significant(a, 6), significant(b, 6)))
+    let d = needed(a, b);
+    (significant(a, d), significant(b, d))
 }
 
 #[cfg(test)]
@@ -51,5 +58,8 @@ mod tests {
         assert_eq!(apart(0.15, 0.15), own("0.150", "0.150"));
         assert_eq!(apart(-2.5e-9, 2.5e-9), own("-2.50e-9", "2.50e-9"));
         assert_eq!(apart(1.0, 1.0 + 1e-12), own("1.00000", "1.00000"));
+        // Apart as numbers, not only as strings ("10.00" and "10.0").
+        assert_eq!(apart(9.996, 10.004), own("9.996", "10.00"));
+        assert_eq!(apart(-0.5, -0.5004), own("-0.5000", "-0.5004"));
     }
 }

@@ -155,3 +155,50 @@ fn the_torque_as_logged_is_the_logged_torque_under_a_scale_correction() {
         );
     }
 }
+
+/// Friction behind a torque sensor's scale: the fit meets it in the logged
+/// torque (s times the robot's); the report gives the robot's value, which
+/// `--apply` writes as reported. The plant's joint 2 has Coulomb friction
+/// 0.55 N m and viscous 0.45 N m s/rad; its torque is logged 10% high.
+#[test]
+fn friction_behind_a_torque_scale_is_reported_as_the_robot_has_it() {
+    let dir = Dir::new();
+    let plant = oracle("kinova_gen3_lite_3dof_plant");
+    let files: Vec<String> = raw_recordings(&plant, 3)
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let mut tau = r.tau().clone();
+            tau.column_mut(1).scale_mut(1.1);
+            let path = dir.path().join(format!("r{k}.csv"));
+            write_csv(&path, &r.with_tau(tau).unwrap()).unwrap();
+            path.to_str().unwrap().to_string()
+        })
+        .collect();
+    let toml = dir.path().join("arm.toml");
+    let source = crate::util::root()
+        .join("models")
+        .join(format!("{NOMINAL}.toml"));
+    std::fs::copy(source, &toml).unwrap();
+    let mut args = vec!["diagnose", "--model", NOMINAL, "--format", "json"];
+    args.extend(["--apply", "--toml", toml.to_str().unwrap(), "--data"]);
+    args.extend(files.iter().map(String::as_str));
+    let report = sdnn_json(&args);
+    let effects = report["effects"].as_array().unwrap();
+    let on_joint_2 = |kind: &str| {
+        effects
+            .iter()
+            .find(|e| e["kind"] == kind && e["joint"] == 2)
+            .unwrap_or_else(|| panic!("no {kind} on joint 2: {effects:?}"))
+    };
+    let scale = on_joint_2("torque_scale")["parameters"]["scale"]
+        .as_f64()
+        .unwrap();
+    assert!((scale - 1.1).abs() < 0.01, "scale {scale}");
+    let level = on_joint_2("coulomb_friction")["parameters"]["level"]
+        .as_f64()
+        .unwrap();
+    assert!((level - 0.55).abs() < 0.05 * 0.55, "Coulomb level {level}");
+    let written = std::fs::read_to_string(&toml).unwrap();
+    assert!(written.contains(&format!("coulomb = {level}")), "{written}");
+}

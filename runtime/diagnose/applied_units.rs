@@ -57,11 +57,14 @@ pub(super) fn in_applied_units(
             }
         }
         if changed {
+            // Named after the scale, so the report ranks it with the scale.
             notes.push(format!(
-                "joint {joint}: its effects are given in the robot's torque, the logged torque \
-                 divided by the torque scale {scale:.4} (what `--apply` writes and `evaluate \
-                 --torque-scale {joint}={scale:.4}` compares); its held-out MSEs are of the logged \
-                 torque, {:.3} times what that `evaluate` shows",
+                "{} on joint {joint}: the joint's other effects are given in the robot's torque, \
+                 the logged torque divided by the scale {scale:.4} (what `--apply` writes and \
+                 `evaluate --torque-scale {joint}={scale:.4}` compares); its held-out MSEs are of \
+                 the logged torque, after the named effects about {:.3} times what that \
+                 `evaluate` shows",
+                Kind::TorqueScale.name(),
                 scale * scale
             ));
         }
@@ -140,7 +143,11 @@ mod tests {
         // Another joint's effects are not touched.
         assert_eq!(supported[1].parameters["level"], json!(0.5));
         assert_eq!(notes.len(), 1);
-        assert!(notes[0].contains("joint 2"), "{}", notes[0]);
+        assert!(
+            notes[0].starts_with("torque_scale on joint 2:"),
+            "{}",
+            notes[0]
+        );
     }
 
     #[test]

@@ -34,19 +34,23 @@ pub(super) fn relative_gain(before: &[f64], after: &[f64], reference: &[f64]) ->
 }
 
 /// The joint an effect leaves worse than the model before the diagnosis,
-/// by more than [`WORSE_THAN_BEFORE`] times its held-out MSE then, and that
-/// factor (the largest). A cut on one joint bought that way is a fit
+/// by more than [`WORSE_THAN_BEFORE`] times its held-out MSE then, where
+/// the effect itself raised it (from `current`, the error at the step), and
+/// that factor (the largest). A cut on one joint bought that way is a fit
 /// trading one joint's structure for another's, not an effect of the arm:
 /// on the independent suite's Panda with link 6 wholly wrong, link 7's
 /// error halved joint 5's leftover and left joint 7 at 11 times its error
 /// before.
-pub(super) fn worse_than_before(after: &[f64], initial: &[f64]) -> Option<(usize, f64)> {
+pub(super) fn worse_than_before(
+    after: &[f64],
+    (current, initial): (&[f64], &[f64]),
+) -> Option<(usize, f64)> {
     after
         .iter()
-        .zip(initial)
+        .zip(current.iter().zip(initial))
         .enumerate()
-        .filter(|(_, (a, i))| **i > 0.0 && **a > WORSE_THAN_BEFORE * **i)
-        .map(|(j, (a, i))| (j, a / i))
+        .filter(|(_, (a, (c, i)))| **i > 0.0 && **a > **c && **a > WORSE_THAN_BEFORE * **i)
+        .map(|(j, (a, (_, i)))| (j, a / i))
         .max_by(|a, b| a.1.total_cmp(&b.1))
 }
 
@@ -97,14 +101,21 @@ mod tests {
         let after = [
             5.64e-3, 9.94e-3, 2.44e-3, 2.46e-3, 8.92e-6, 3.83e-5, 5.66e-6,
         ];
-        let (joint, factor) = worse_than_before(&after, &initial).unwrap();
+        let current = [
+            5.65e-3, 9.94e-3, 2.45e-3, 2.46e-3, 1.90e-5, 3.82e-5, 4.94e-7,
+        ];
+        let (joint, factor) = worse_than_before(&after, (&current, &initial)).unwrap();
         assert_eq!(joint, 6);
         assert!((factor - 11.46).abs() < 0.01, "{factor}");
         // Worse than at the step but far below the error before (a real
         // UR10e's wrist, 3.9 times its leftover, 8% of its error before).
         let after = [5.64e-3, 9.94e-3, 2.44e-3, 0.071, 8.92e-6, 3.83e-5, 4.9e-7];
-        assert_eq!(worse_than_before(&after, &initial), None);
+        assert_eq!(worse_than_before(&after, (&current, &initial)), None);
+        // A joint already above the bar that this effect does not raise.
+        let worse = [5.65e-3, 9.94e-3, 2.45e-3, 2.46e-3, 1.90e-5, 3.82e-5, 2e-6];
+        let after = [5.64e-3, 9.94e-3, 2.44e-3, 2.46e-3, 8.92e-6, 3.83e-5, 1.9e-6];
+        assert_eq!(worse_than_before(&after, (&worse, &initial)), None);
         // A joint with no error before is not judged.
-        assert_eq!(worse_than_before(&[1.0], &[0.0]), None);
+        assert_eq!(worse_than_before(&[1.0], (&[0.5], &[0.0])), None);
     }
 }

@@ -273,8 +273,8 @@ pub fn diagnose(
     } = described;
     stribeck::merge(stribeck?, &mut effects, &mut notes);
     let resolution = settings.com_resolution * size;
-    let mut supported = supported::listed(&candidates, &supported, resolution);
-    applied_units::in_applied_units(&mut effects, &mut supported, &mut notes);
+    let mut listed = supported::listed(&candidates, &supported, resolution);
+    applied_units::in_applied_units(&mut effects, &mut listed, &mut notes);
     modelled::add_totals(&mut effects, &modelled::joint_effects(model));
     let residuals = residual_samples(&data, &moments, &candidates, &selected);
     let joint_kinds = joint_kinds(model);
@@ -303,7 +303,7 @@ pub fn diagnose(
         mse_after,
         mse_after_fitted,
         effects,
-        supported,
+        supported: listed,
         identifiability: identify::identifiability(&moments, &candidates, &selected),
         notes,
         sanity,

@@ -233,7 +233,7 @@ fn forward(
         if gain.share < settings.min_gain {
             break;
         }
-        if let Some((joint, factor)) = worse_than_before(&mse, initial) {
+        if let Some((joint, factor)) = worse_than_before(&mse, (&current, initial)) {
             steps.notes.push(format!(
                 "{}: {} at this step, but it leaves joint {}'s at {:.1} times its held-out MSE \
                  before the diagnosis, a fit trading one joint's structure for another's; not \

@@ -241,13 +241,14 @@ impl Diagnosis {
             .iter()
             .filter(|(name, v)| !v.is_null() && !is_null_array(v) && !reference(name))
             .map(|(name, value)| {
-                let interval = e.ci95.get(name).map_or(String::new(), interval_text);
+                let ci95 = e.ci95.get(name);
+                let interval = ci95.map_or(String::new(), interval_text);
                 let revolute = unit(e.kind, name);
                 let unit = match e.joint {
                     Some(j) if self.sliding(j) => linear(revolute),
                     _ => revolute,
                 };
-                format!("{name} {}{unit}{interval}", value_text(value))
+                format!("{name} {}{unit}{interval}", value_within(value, ci95))
             })
             .collect()
     }
@@ -346,6 +347,35 @@ fn value_text(v: &serde_json::Value) -> String {
             )
         }
         other => other.to_string(),
+    }
+}
+
+/// A value with the digits its interval needs (per component for
+/// vectors), so that it never reads as outside its own interval.
+fn value_within(v: &serde_json::Value, ci95: Option<&serde_json::Value>) -> String {
+    let ends = |i: &serde_json::Value| {
+        let i = i.as_array()?;
+        Some((i.first()?.as_f64()?, i.get(1)?.as_f64()?))
+    };
+    let scalar =
+        |x: &serde_json::Value, i: Option<&serde_json::Value>| match (x.as_f64(), i.and_then(ends))
+        {
+            (Some(x), Some((low, high))) => {
+                crate::digits::significant(x, crate::digits::needed(low, high))
+            }
+            _ => value_text(x),
+        };
+    match (v, ci95.and_then(|i| i.as_array())) {
+        (serde_json::Value::Array(a), Some(intervals)) => format!(
+            "[{}]",
+            a.iter()
+                .enumerate()
+                .map(|(k, x)| scalar(x, intervals.get(k)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        (serde_json::Value::Number(n), _) if n.is_u64() => n.to_string(),
+        _ => scalar(v, ci95),
     }
 }
 

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::DMatrix;
 use thiserror::Error;
 
+mod advice;
 mod plan;
 mod read;
 mod sampling;

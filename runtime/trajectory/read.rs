@@ -224,7 +224,7 @@ pub(super) fn classify_columns(
             line,
             column: raw.to_owned(),
             expected: schema.expected.to_owned(),
-            advice: unexpected_advice(raw),
+            advice: super::advice::unexpected(raw),
         };
         if !seen.insert(name.to_owned()) {
             return Err(TrajectoryError::DuplicateColumn {
@@ -242,56 +242,6 @@ pub(super) fn classify_columns(
         }
     }
     Ok((time, joints))
-}
-
-/// What to do with a header cell outside the contract: a cell holding
-/// semicolons or tabs is a whole header the comma reader did not split.
-fn unexpected_advice(cell: &str) -> String {
-    match [';', '\t'].into_iter().find(|d| cell.contains(*d)) {
-        Some(d) => format!(
-            "the header is separated by {}: write the file with commas (for example \
-             `tr '{}' ','`, if no value holds a decimal comma)",
-            if d == ';' { "semicolons" } else { "tabs" },
-            if d == ';' { ";" } else { "\\t" },
-        ),
-        None => format!(
-            "map it to a contract column with `--column {}={}`, or skip it with \
-             `--ignore-column {}`",
-            crate::shell::shell_word(cell),
-            contract_guess(cell).unwrap_or_else(|| "NAME".to_string()),
-            crate::shell::shell_word(cell)
-        ),
-    }
-}
-
-/// The contract column a header cell most likely means, from its words
-/// (`torque2` or `effort_2` -> `tau2`, `time_s` -> `t`), for the advice.
-fn contract_guess(cell: &str) -> Option<String> {
-    let lower = cell.to_lowercase();
-    let digits: String = lower
-        .chars()
-        .rev()
-        .take_while(char::is_ascii_digit)
-        .collect::<Vec<_>>()
-        .into_iter()
-        .rev()
-        .collect();
-    let has = |words: &[&str]| words.iter().any(|w| lower.contains(w));
-    if digits.is_empty() {
-        return has(&["time", "stamp", "sec"]).then(|| "t".to_string());
-    }
-    let prefix = if has(&["acc"]) {
-        "qdd"
-    } else if has(&["vel", "speed", "rate"]) {
-        "qd"
-    } else if has(&["torque", "effort", "tau", "current", "force"]) {
-        "tau"
-    } else if has(&["pos", "angle", "joint"]) {
-        "q"
-    } else {
-        return None;
-    };
-    Some(format!("{prefix}{digits}"))
 }
 
 pub(super) fn missing((path, line): (&Path, u64), column: String) -> TrajectoryError {
