@@ -341,3 +341,52 @@ fn a_heavier_link_keeps_its_com_where_the_data_do_not_move_it() {
         }
     }
 }
+
+/// The 3-DOF model's last link is not physically realizable as modelled
+/// (the thesis's lumped inertia breaks the triangle inequality), so no
+/// correction of it is: `--apply` writes the named payload as fitted and
+/// says so, pointing at the link's inertia.
+#[test]
+fn apply_warns_when_the_corrected_body_is_not_physical() {
+    let mut truth = oracle(NOMINAL);
+    add_point_mass(&mut truth.bodies[2].parameters, 0.4, [0.031, -0.011, 0.186]);
+    let dir = crate::util::Dir::new();
+    let files: Vec<String> = raw_recordings(&truth, 3)
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let path = dir.path().join(format!("r{k}.csv"));
+            sdnn::trajectory::write_csv(&path, r).unwrap();
+            path.to_str().unwrap().to_string()
+        })
+        .collect();
+    let source = crate::util::root().join(format!("models/{NOMINAL}.toml"));
+    let toml = dir.path().join("arm.toml");
+    std::fs::copy(source, &toml).unwrap();
+    let mut args = vec!["diagnose", "--model", NOMINAL, "--format", "json"];
+    args.extend(["--apply", "--toml", toml.to_str().unwrap(), "--data"]);
+    args.extend(files.iter().map(String::as_str));
+    let run = crate::util::sdnn(&args);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let payload = report["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["kind"] == "payload")
+        .unwrap_or_else(|| panic!("{report}"));
+    assert_eq!(
+        payload["parameters"]["physically_consistent"], false,
+        "{report}"
+    );
+    assert!(
+        stderr.contains("payload of link `link3` is written as fitted, but the corrected body is not physically realizable"),
+        "{stderr}"
+    );
+    assert!(
+        std::fs::read_to_string(&toml)
+            .unwrap()
+            .contains("name = \"payload\"")
+    );
+}

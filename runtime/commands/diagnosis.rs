@@ -210,6 +210,16 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis, toml: &P
     for line in &applied.changes {
         crate::say!("  {line}");
     }
+    for e in report.effects.iter().filter(|e| {
+        e.parameters.get("physically_consistent") == Some(&serde_json::Value::Bool(false))
+    }) {
+        crate::say!(
+            "  warning: the {} of link `{}` is written as fitted, but the corrected body is not \
+             physically realizable (the report's note says why): correct that link's inertia too",
+            e.kind.name(),
+            e.link.as_deref().unwrap_or("?")
+        );
+    }
     let data: Vec<String> = args
         .data
         .iter()
