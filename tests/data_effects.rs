@@ -25,15 +25,8 @@ fn distorted(recording: &Trajectory) -> Trajectory {
 #[test]
 fn a_scaled_and_late_torque_is_named_corrected_and_closes_the_gap() {
     let dir = Dir::new();
-    let files: Vec<String> = raw_recordings(&oracle(NOMINAL), 3)
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let path = dir.path().join(format!("r{k}.csv"));
-            write_csv(&path, &distorted(r)).unwrap();
-            path.to_str().unwrap().to_string()
-        })
-        .collect();
+    let recordings = raw_recordings(&oracle(NOMINAL), 3);
+    let files = dir.recordings("r", recordings.iter().map(distorted));
     let mut args = vec!["diagnose", "--model", NOMINAL, "--format", "json", "--data"];
     args.extend(files.iter().map(String::as_str));
     let report = sdnn_json(&args);
@@ -164,17 +157,12 @@ fn the_torque_as_logged_is_the_logged_torque_under_a_scale_correction() {
 fn friction_behind_a_torque_scale_is_reported_as_the_robot_has_it() {
     let dir = Dir::new();
     let plant = oracle("kinova_gen3_lite_3dof_plant");
-    let files: Vec<String> = raw_recordings(&plant, 3)
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let mut tau = r.tau().clone();
-            tau.column_mut(1).scale_mut(1.1);
-            let path = dir.path().join(format!("r{k}.csv"));
-            write_csv(&path, &r.with_tau(tau).unwrap()).unwrap();
-            path.to_str().unwrap().to_string()
-        })
-        .collect();
+    let scaled = raw_recordings(&plant, 3).into_iter().map(|r| {
+        let mut tau = r.tau().clone();
+        tau.column_mut(1).scale_mut(1.1);
+        r.with_tau(tau).unwrap()
+    });
+    let files = dir.recordings("r", scaled);
     let toml = dir.path().join("arm.toml");
     let source = crate::util::root()
         .join("models")

@@ -402,15 +402,7 @@ fn applied_fix_regenerates_to_the_fitted_prediction() {
     truth.bodies[1].effects.viscous = 0.8;
     truth.bodies[2].effects.coulomb = 0.5;
     let dir = Dir::new();
-    let files: Vec<String> = raw_recordings(&truth, 6)
-        .iter()
-        .enumerate()
-        .map(|(i, raw)| {
-            let path = dir.path().join(format!("run{i}.csv"));
-            sdnn::trajectory::write_csv(&path, raw).unwrap();
-            path.to_str().unwrap().to_string()
-        })
-        .collect();
+    let files = dir.recordings("run", raw_recordings(&truth, 6));
     let source = std::fs::read_to_string(root().join(format!("models/{NOMINAL}.toml"))).unwrap();
     let copy = dir.write(&format!("{DIAGNOSED}.toml"), &source);
 

@@ -351,15 +351,7 @@ fn apply_warns_when_the_corrected_body_is_not_physical() {
     let mut truth = oracle(NOMINAL);
     add_point_mass(&mut truth.bodies[2].parameters, 0.4, [0.031, -0.011, 0.186]);
     let dir = crate::util::Dir::new();
-    let files: Vec<String> = raw_recordings(&truth, 3)
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let path = dir.path().join(format!("r{k}.csv"));
-            sdnn::trajectory::write_csv(&path, r).unwrap();
-            path.to_str().unwrap().to_string()
-        })
-        .collect();
+    let files = dir.recordings("r", raw_recordings(&truth, 3));
     let source = crate::util::root().join(format!("models/{NOMINAL}.toml"));
     let toml = dir.path().join("arm.toml");
     std::fs::copy(source, &toml).unwrap();

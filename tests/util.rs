@@ -70,6 +70,24 @@ impl Dir {
         std::fs::write(&path, contents).expect("write test file");
         path
     }
+
+    /// Each recording as a CSV file `{stem}{k}.csv`, the paths as `--data`
+    /// takes them.
+    pub fn recordings(
+        &self,
+        stem: &str,
+        recordings: impl IntoIterator<Item = sdnn::trajectory::Trajectory>,
+    ) -> Vec<String> {
+        recordings
+            .into_iter()
+            .enumerate()
+            .map(|(k, r)| {
+                let path = self.0.path().join(format!("{stem}{k}.csv"));
+                sdnn::trajectory::write_csv(&path, &r).expect("write recording");
+                path.to_str().expect("a UTF-8 path").to_string()
+            })
+            .collect()
+    }
 }
 
 /// Runs the `sdnn` binary.
