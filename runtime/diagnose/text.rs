@@ -353,10 +353,6 @@ fn value_text(v: &serde_json::Value) -> String {
 /// A value with the digits its interval needs (per component for
 /// vectors), so that it never reads as outside its own interval.
 fn value_within(v: &serde_json::Value, ci95: Option<&serde_json::Value>) -> String {
-    let ends = |i: &serde_json::Value| {
-        let i = i.as_array()?;
-        Some((i.first()?.as_f64()?, i.get(1)?.as_f64()?))
-    };
     let scalar =
         |x: &serde_json::Value, i: Option<&serde_json::Value>| match (x.as_f64(), i.and_then(ends))
         {
@@ -379,14 +375,20 @@ fn value_within(v: &serde_json::Value, ci95: Option<&serde_json::Value>) -> Stri
     }
 }
 
+/// An interval's `[low, high]`, when it is two numbers.
+fn ends(interval: &serde_json::Value) -> Option<(f64, f64)> {
+    let i = interval.as_array()?;
+    Some((i.first()?.as_f64()?, i.get(1)?.as_f64()?))
+}
+
 /// `(95% CI a .. b)` for a scalar interval, per component for vectors.
 fn interval_text(v: &serde_json::Value) -> String {
     let Some(items) = v.as_array() else {
         return String::new();
     };
     let pair = |p: &serde_json::Value| -> Option<String> {
-        let p = p.as_array()?;
-        let (low, high) = crate::digits::apart(p.first()?.as_f64()?, p.get(1)?.as_f64()?);
+        let (low, high) = ends(p)?;
+        let (low, high) = crate::digits::apart(low, high);
         Some(format!("{low} .. {high}"))
     };
     if items.first().is_some_and(|x| x.is_number()) {

@@ -30,15 +30,9 @@ pub(super) fn unexpected(cell: &str) -> String {
 /// which joint is meant is not for a guess) gets none.
 fn contract_guess(cell: &str) -> Option<String> {
     let lower = cell.to_lowercase();
-    let number: String = lower
-        .chars()
-        .rev()
-        .take_while(char::is_ascii_digit)
-        .collect::<Vec<_>>()
-        .into_iter()
-        .rev()
-        .collect();
-    let words = lower[..lower.len() - number.len()]
+    let named = lower.trim_end_matches(|c: char| c.is_ascii_digit());
+    let number = &lower[named.len()..];
+    let words = named
         .split(|c: char| !c.is_ascii_alphabetic())
         .filter(|w| !w.is_empty());
     let mut quantity = None;
