@@ -14,22 +14,6 @@ use super::diagnosis::Effect;
 use super::kind::Kind;
 use crate::corrections::Corrections;
 
-/// The parameters of a joint effect that are torques (or torques per unit
-/// of the joint's motion), which a torque scale multiplies.
-fn torque_parameters(kind: Kind) -> &'static [&'static str] {
-    match kind {
-        Kind::ViscousFriction => &["coefficient"],
-        Kind::CoulombFriction => &["level"],
-        Kind::Armature => &["inertia"],
-        Kind::TorqueOffset => &["offset"],
-        Kind::CoulombAsymmetry => &["asymmetry"],
-        Kind::StribeckFriction => &["excess"],
-        Kind::TorqueRipple => &["sin", "cos"],
-        Kind::JointSpring => &["stiffness", "constant"],
-        _ => &[],
-    }
-}
-
 /// Divides the torque parameters of the named and the supported effects
 /// on each joint with a named torque scale by that scale; a note per such
 /// joint says so.
@@ -47,7 +31,8 @@ pub(super) fn in_applied_units(
             .chain(supported.iter_mut())
             .filter(on_joint)
         {
-            for &name in torque_parameters(effect.kind) {
+            let torques = effect.kind.joint_parameters().filter(|p| p.torque);
+            for name in torques.map(|p| p.name) {
                 changed |= divide(effect.parameters.get_mut(name), scale);
                 if let Some(Value::Array(interval)) = effect.ci95.get_mut(name) {
                     interval.iter_mut().for_each(|v| {

@@ -3,7 +3,7 @@
 //! residual holds what is missing): the report gives the model's value and
 //! the total beside it, the total being what `--apply` writes.
 
-use codegen::JointEffects;
+use codegen::{EFFECT_NAMES, JointEffects};
 use serde_json::{Map, Value, json};
 
 use super::diagnosis::Effect;
@@ -31,37 +31,25 @@ pub(super) fn ripple_cycles(effects: &[JointEffects]) -> Vec<Option<f64>> {
         .collect()
 }
 
-/// The effect's parameters that add to the description's effect values:
-/// (parameter, effect key).
-fn additive(kind: Kind) -> &'static [(&'static str, &'static str)] {
-    match kind {
-        Kind::ViscousFriction => &[("coefficient", "viscous")],
-        Kind::CoulombFriction => &[("level", "coulomb")],
-        Kind::Armature => &[("inertia", "armature")],
-        Kind::TorqueOffset => &[("offset", "offset")],
-        Kind::CoulombAsymmetry => &[("asymmetry", "coulomb_asymmetry")],
-        Kind::StribeckFriction => &[("excess", "stribeck")],
-        Kind::TorqueRipple => &[("sin", "ripple_sin"), ("cos", "ripple_cos")],
-        Kind::JointSpring => &[("stiffness", "spring"), ("rest", "spring_rest")],
-        _ => &[],
-    }
+/// The parameters of `kind` whose model value and total the report gives,
+/// as (parameter, description key): the amounts, and a spring's rest angle
+/// (two springs are one about their stiffness-weighted mean rest).
+fn combined(kind: Kind) -> impl Iterator<Item = (&'static str, &'static str)> {
+    kind.joint_parameters()
+        .filter(move |p| !p.shape || kind == Kind::JointSpring)
+        .filter_map(|p| Some((p.name, p.key?)))
 }
 
-/// The model's value of an effect key of a joint.
+/// The model's value of a description key of a joint (0 for no key).
 fn value(e: &JointEffects, key: &str) -> f64 {
-    match key {
-        "viscous" => e.viscous,
-        "coulomb" => e.coulomb,
-        "armature" => e.armature,
-        "offset" => e.offset,
-        "coulomb_asymmetry" => e.coulomb_asymmetry,
-        "stribeck" => e.stribeck,
-        "ripple_sin" => e.ripple_sin,
-        "ripple_cos" => e.ripple_cos,
-        "spring" => e.spring,
-        "spring_rest" => e.spring_rest,
-        _ => 0.0,
-    }
+    let amounts = EFFECT_NAMES.into_iter().zip(e.parameters());
+    // The order of `JointEffects::shapes`.
+    let shapes = ["spring_rest", "stribeck_velocity", "ripple_cycles"];
+    let shapes = shapes.into_iter().zip(e.shapes());
+    amounts
+        .chain(shapes)
+        .find(|&(k, _)| k == key)
+        .map_or(0.0, |(_, v)| v)
 }
 
 /// Fills `modelled` and `total` of every named joint effect the model
@@ -71,7 +59,7 @@ fn value(e: &JointEffects, key: &str) -> f64 {
 /// torque already (`applied_units`), as `--apply` writes it.
 pub(super) fn add_totals(effects: &mut [Effect], modelled: &[JointEffects]) {
     for effect in effects {
-        let pairs = additive(effect.kind);
+        let pairs: Vec<_> = combined(effect.kind).collect();
         let Some(model) = effect.joint.and_then(|j| modelled.get(j - 1)) else {
             continue;
         };
@@ -83,7 +71,7 @@ pub(super) fn add_totals(effects: &mut [Effect], modelled: &[JointEffects]) {
         }
         let fitted = |name: &str| effect.parameters.get(name).and_then(Value::as_f64);
         let (mut was, mut total) = (Map::new(), Map::new());
-        for &(name, key) in pairs {
+        for &(name, key) in &pairs {
             let Some(correction) = fitted(name) else {
                 continue;
             };

@@ -137,26 +137,6 @@ pub fn apply_to_text(
                 let rest = value("rest").context("spring without rest angle")?;
                 add_spring(&mut doc, name, stiffness, rest)?;
             }
-            (Kind::StribeckFriction, Some(joint)) => {
-                let name = joints.get(joint - 1).context("joint index out of range")?;
-                let excess = value("excess").context("Stribeck friction without excess")?;
-                let velocity = value("velocity").context("Stribeck friction without velocity")?;
-                add_shaped(
-                    &mut doc,
-                    name,
-                    &[("stribeck", excess)],
-                    ("stribeck_velocity", velocity),
-                )?;
-            }
-            (Kind::TorqueRipple, Some(joint)) => {
-                let name = joints.get(joint - 1).context("joint index out of range")?;
-                let amplitudes = [
-                    ("ripple_sin", value("sin").context("ripple without sin")?),
-                    ("ripple_cos", value("cos").context("ripple without cos")?),
-                ];
-                let cycles = value("cycles").context("ripple without cycles")?;
-                add_shaped(&mut doc, name, &amplitudes, ("ripple_cycles", cycles))?;
-            }
             (Kind::GravityDirection, _) => {
                 let gravity: Vec<f64> = vector(&effect.parameters, "gravity")?
                     .into_iter()
@@ -169,21 +149,31 @@ pub fn apply_to_text(
                 set_keeping_decor(doc.as_table_mut(), "gravity", Value::Array(array));
             }
             (kind, Some(joint)) => {
-                let (key, parameter) = match kind {
-                    Kind::ViscousFriction => ("viscous", "coefficient"),
-                    Kind::CoulombFriction => ("coulomb", "level"),
-                    Kind::Armature => ("armature", "inertia"),
-                    Kind::TorqueOffset => ("offset", "offset"),
-                    Kind::CoulombAsymmetry => ("coulomb_asymmetry", "asymmetry"),
-                    _ => unreachable!("handled above"),
-                };
                 let name = joints.get(joint - 1).context("joint index out of range")?;
-                add_joint_effect(
-                    &mut doc,
-                    name,
-                    key,
-                    value(parameter).context("missing parameter")?,
-                )?;
+                let mut amounts = Vec::new();
+                let mut shape = None;
+                if kind.joint_parameters().next().is_none() {
+                    bail!("{} is not an effect of a joint", kind.name());
+                }
+                for p in kind.joint_parameters() {
+                    let Some(key) = p.key else { continue };
+                    let fitted = value(p.name)
+                        .with_context(|| format!("{} without {}", kind.name(), p.name))?;
+                    if p.shape {
+                        shape = Some((key, fitted));
+                    } else {
+                        amounts.push((key, fitted));
+                    }
+                }
+                match shape {
+                    // A Stribeck velocity, a ripple's cycles.
+                    Some(shape) => add_shaped(&mut doc, name, &amounts, shape)?,
+                    None => {
+                        for (key, amount) in amounts {
+                            add_joint_effect(&mut doc, name, key, amount)?;
+                        }
+                    }
+                }
             }
             (kind, None) => bail!("{kind:?} has no joint"),
         }
