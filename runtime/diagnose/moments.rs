@@ -19,6 +19,8 @@ pub(super) struct Moments {
     /// For each candidate column, the moment column that scores it (itself,
     /// or its `applied` column stored after all candidate columns).
     pub(super) applied: Vec<usize>,
+    /// Each joint's weight in the fits (see [`Moments::weighted`]).
+    pub(super) weights: Vec<f64>,
     /// X^T X and X^T r per group summed over the joints, and over
     /// everything: a fold's normal equations are the total less one group,
     /// not a sum over every other group and joint.
@@ -85,14 +87,45 @@ impl Moments {
         rows: Vec<Vec<usize>>,
         applied: Vec<usize>,
     ) -> Moments {
+        let joints = xx.first().map_or(0, Vec::len);
+        Moments::summed(xx, xr, rr, rows, applied, vec![1.0; joints])
+    }
+
+    /// The same moments with each joint's rows weighted by `weights`
+    /// (weighted least squares): the fits below then weigh a joint's
+    /// squared residual by its weight.
+    pub(super) fn weighted(self, weights: Vec<f64>) -> Moments {
+        Moments::summed(self.xx, self.xr, self.rr, self.rows, self.applied, weights)
+    }
+
+    fn summed(
+        xx: Vec<Vec<DMatrix<f64>>>,
+        xr: Vec<Vec<DVector<f64>>>,
+        rr: Vec<Vec<f64>>,
+        rows: Vec<Vec<usize>>,
+        applied: Vec<usize>,
+        weights: Vec<f64>,
+    ) -> Moments {
         let p = xx.first().and_then(|g| g.first()).map_or(0, DMatrix::nrows);
-        let sum_m = |parts: &[DMatrix<f64>]| parts.iter().fold(DMatrix::zeros(p, p), |a, x| a + x);
-        let sum_v = |parts: &[DVector<f64>]| parts.iter().fold(DVector::zeros(p), |a, x| a + x);
+        let sum_m = |parts: &[DMatrix<f64>]| {
+            parts
+                .iter()
+                .zip(&weights)
+                .fold(DMatrix::zeros(p, p), |a, (x, w)| a + x * *w)
+        };
+        let sum_v = |parts: &[DVector<f64>]| {
+            parts
+                .iter()
+                .zip(&weights)
+                .fold(DVector::zeros(p), |a, (x, w)| a + x * *w)
+        };
         let group_xx: Vec<DMatrix<f64>> = xx.iter().map(|g| sum_m(g)).collect();
         let group_xr: Vec<DVector<f64>> = xr.iter().map(|g| sum_v(g)).collect();
+        let total_xx = group_xx.iter().fold(DMatrix::zeros(p, p), |a, x| a + x);
+        let total_xr = group_xr.iter().fold(DVector::zeros(p), |a, x| a + x);
         Moments {
-            total_xx: sum_m(&group_xx),
-            total_xr: sum_v(&group_xr),
+            total_xx,
+            total_xr,
             group_xx,
             group_xr,
             xx,
@@ -100,6 +133,7 @@ impl Moments {
             rr,
             rows,
             applied,
+            weights,
         }
     }
 
@@ -147,7 +181,10 @@ impl Moments {
     /// The residual's sum of squares over the groups `keep` accepts.
     pub(super) fn residual_sum(&self, keep: impl Fn(usize) -> bool) -> f64 {
         let kept = self.rr.iter().enumerate().filter(|(g, _)| keep(*g));
-        kept.map(|(_, joints)| joints.iter().sum::<f64>()).sum()
+        let weighted = |joints: &Vec<f64>| -> f64 {
+            joints.iter().zip(&self.weights).map(|(r, w)| r * w).sum()
+        };
+        kept.map(|(_, joints)| weighted(joints)).sum()
     }
 
     /// The scoring columns of fitted `columns` (see `Candidate::applied`).

@@ -50,7 +50,9 @@ fn covariance(
         if n == 0 {
             continue;
         }
-        let variance = sse.max(0.0) / n as f64 * spent;
+        // A weighted fit's meat: w_j^2 sigma_j^2 X_j^T X_j.
+        let w = m.weights[j];
+        let variance = sse.max(0.0) / n as f64 * spent * w * w;
         for group in &m.xx {
             let xx = &group[j];
             meat += DMatrix::from_fn(c, c, |r, s| xx[(columns[r], columns[s])]) * variance;

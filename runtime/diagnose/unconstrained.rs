@@ -154,7 +154,8 @@ fn base_parameters(m: &Moments, candidates: &[Candidate], c: usize) -> Option<Ba
         m.rr.clone(),
         m.rows.clone(),
         applied,
-    );
+    )
+    .weighted(m.weights.clone());
     let mut free = candidates.to_vec();
     let columns = &candidates[c].columns;
     free[c].shape = Shape::Linear;
