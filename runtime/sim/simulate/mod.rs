@@ -312,6 +312,17 @@ pub struct Recording {
     pub reference: Trajectory,
 }
 
+impl Recording {
+    /// The joint (0-based) that left its planned motion most, by how much
+    /// (rad or m) and when (s).
+    pub fn worst_tracking(&self) -> Option<(usize, f64, f64)> {
+        let error = self.truth.q() - self.reference.q();
+        let (row, joint) = error.iamax_full();
+        let worst = error.get((row, joint))?.abs();
+        Some((joint, worst, self.truth.t()[row]))
+    }
+}
+
 /// Runs the virtual robot over the reference's duration, starting at the
 /// reference's initial state, and records at the control rate.
 ///

@@ -241,6 +241,9 @@ fn a_stiff_plant_is_integrated_in_enough_steps() {
     let rec = simulate(&plant, &plant, &reference, &quiet(), 0).unwrap();
     let error = rec.truth.q() - rec.reference.q();
     assert!(error.amax() < 0.5, "tracking error {}", error.amax());
+    let (joint, worst, time) = rec.worst_tracking().unwrap();
+    assert_eq!((joint, worst), (0, error.amax()));
+    assert!(time > 0.0 && time <= *rec.truth.t().last().unwrap());
     assert!(rec.truth.qd().amax() < 2.0);
 }
 
