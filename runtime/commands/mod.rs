@@ -193,7 +193,7 @@ fn warn_if_not_followed(recording: &crate::sim::simulate::Recording, path: &Path
         return;
     };
     if error > LOST_TRACKING {
-        let name = path.file_name().map_or(path.into(), Path::new).display();
+        let name = path.file_name().map_or(path, Path::new).display();
         eprintln!(
             "warning: {name}: joint {} left its planned motion by {error:.3} at t = {time:.3} s \
              (the drives saturate at their effort limits, or the plant differs from the \
