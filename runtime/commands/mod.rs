@@ -166,6 +166,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         let seed = study::trajectory_seed(args.seed, k);
         let recording = study::record_trajectory(plant, nominal, &waypoints, seed)?;
         let path = staged.path().join(format!("trajectory_{:02}.csv", k + 1));
+        warn_if_not_followed(&recording, &path);
         write_csv(&path, &recording.measured)?;
         bar.inc(1);
     }
@@ -177,6 +178,30 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
         args.out.display()
     ))?;
     Ok(())
+}
+
+/// Tracking error (rad or m) beyond which a recording is not of the
+/// planned motion.
+const LOST_TRACKING: f64 = 0.2;
+
+/// Warns when the virtual robot left its planned motion: the drives
+/// saturated at their effort limits (a plant heavier than the controller's
+/// model, a plan too fast for them) and the joint ran away, so the
+/// recording's positions may leave the description's limits.
+fn warn_if_not_followed(recording: &crate::sim::simulate::Recording, path: &Path) {
+    let Some((joint, error, time)) = recording.worst_tracking() else {
+        return;
+    };
+    if error > LOST_TRACKING {
+        let name = path.file_name().map_or(path, Path::new).display();
+        eprintln!(
+            "warning: {name}: joint {} left its planned motion by {error:.3} at t = {time:.3} s \
+             (the drives saturate at their effort limits, or the plant differs from the \
+             controller's model too much to follow): the recording is of the motion the robot \
+             made, which may leave its limits",
+            joint + 1
+        );
+    }
 }
 
 /// Starts writing `count` recordings into the folder `out` whole (see
@@ -257,6 +282,7 @@ fn simulate_plan(args: &SimulateArgs, path: &Path) -> Result<()> {
     let seed = study::trajectory_seed(args.seed, 0);
     let recording = study::record_reference(plant, nominal, &reference, seed, 1.0)
         .with_context(|| format!("recording {}", path.display()))?;
+    warn_if_not_followed(&recording, Path::new("trajectory_01.csv"));
     write_csv(staged.path().join("trajectory_01.csv"), &recording.measured)?;
     reproduction::commit_folder(staged, &args.out)?;
     let out = args.out.join("trajectory_01.csv");

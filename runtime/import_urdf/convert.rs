@@ -181,6 +181,9 @@ pub(super) fn convert_joint(
     if has_dynamics && !moving && !mimic && kind != KindOut::Fixed {
         messages.idle_dynamics.push(joint.name.clone());
     }
+    if has_dynamics && (moving || mimic) {
+        messages.friction.push(joint.name.clone());
+    }
     Ok(JointOut {
         name: joint.name.clone(),
         kind,

@@ -106,6 +106,8 @@ struct Messages {
     notes: Vec<String>,
     /// Held or mimic joints whose `<dynamics>` is left out.
     idle_dynamics: Vec<String>,
+    /// Joints whose `<dynamics>` became their friction.
+    friction: Vec<String>,
 }
 
 /// Converts `urdf_text` to description TOML. `source_label` is only written
@@ -375,6 +377,16 @@ fn summary_notes(
             "<dynamics> of {} joint(s) that do not move left out: {}",
             idle.len(),
             names(&idle)
+        ));
+    }
+    if !messages.friction.is_empty() {
+        let joints: Vec<&str> = messages.friction.iter().map(String::as_str).collect();
+        messages.notes.push(format!(
+            "<dynamics> of {} joint(s) imported as their friction (damping as viscous, friction \
+             as Coulomb): {}; simulator values are often placeholders: check them against the \
+             robot's, or let `sdnn diagnose` measure them",
+            joints.len(),
+            names(&joints)
         ));
     }
     if !skipped.is_empty() {

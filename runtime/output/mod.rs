@@ -266,6 +266,9 @@ pub(crate) mod tests {
 
     #[test]
     fn writes_and_replaces_without_leftovers() {
+        // An interrupt test's `remove_pending` beside it removed this
+        // write's temporary file once (CI, 2026-11-27).
+        let _serial = SERIAL.lock();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("out.txt");
         write(&path, b"one").unwrap();

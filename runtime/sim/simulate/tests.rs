@@ -214,6 +214,39 @@ fn divergence_reports_time() {
     assert!(err.to_string().contains("diverged at t ="));
 }
 
+/// A light link with strong viscous friction (1e-4 kg m^2, 2 N m s/rad:
+/// an imported wrist) decays at 20,000 1/s, beyond RK4's bound at one step
+/// per millisecond, where the run diverged: it now takes the steps it
+/// needs. It tracks loosely (a torque held for 1 ms moves a joint whose
+/// friction settles it in 50 us only I / (b dt) = 5% of the commanded
+/// acceleration), as a real drive would without rotor inertia.
+#[test]
+fn a_stiff_plant_is_integrated_in_enough_steps() {
+    let plant = Pendulum {
+        mass: 0.01,
+        length: 0.1,
+        viscous: 2.0,
+    };
+    let q = DVector::from_element(1, 0.3);
+    assert_eq!(stable_substeps(&plant, &q, 1e-3).unwrap(), 20);
+    let limits = JointLimits::uniform(1, (-1.0, 1.0), 1.0, 1.0);
+    let reference = WaypointTrajectory::new(
+        &WaypointConfig {
+            limits,
+            ..Default::default()
+        },
+        0,
+    )
+    .unwrap();
+    let rec = simulate(&plant, &plant, &reference, &quiet(), 0).unwrap();
+    let error = rec.truth.q() - rec.reference.q();
+    assert!(error.amax() < 0.5, "tracking error {}", error.amax());
+    let (joint, worst, time) = rec.worst_tracking().unwrap();
+    assert_eq!((joint, worst), (0, error.amax()));
+    assert!(time > 0.0 && time <= *rec.truth.t().last().unwrap());
+    assert!(rec.truth.qd().amax() < 2.0);
+}
+
 #[test]
 fn bad_inputs_are_errors() {
     let arm = TwoLink::new();
