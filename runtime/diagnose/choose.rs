@@ -33,9 +33,7 @@ pub(super) fn choose(
     settings: Settings,
     size: f64,
 ) -> Chosen {
-    let moments = Moments::new(data, candidates);
-    let weights = noise_weights(&moments, candidates);
-    let moments = moments.weighted(weights);
+    let moments = Moments::new(data, candidates).noise_weighted(candidates);
     // A link whose origin does not accelerate has no mass column of its
     // own: its mass acts only through its second moments, which identify it
     // if the inertia about the COM is as modelled (noted); where they do not,
@@ -320,30 +318,4 @@ mod tests {
             assert!(!without.contains(&1), "{without:?}");
         }
     }
-}
-
-/// Each joint's weight in the fits: the inverse of its residual variance
-/// left by every linear candidate at once (least squares, the first step of
-/// feasible weighted least squares), scaled to a mean of 1. The joints of
-/// an arm differ in noise by orders of magnitude (a UR10e's shoulder 0.6 N m,
-/// its wrist 0.004): unweighted, an effect shared by all joints (a body, a
-/// payload's own inertia) is fitted to the noisiest.
-fn noise_weights(m: &Moments, candidates: &[Candidate]) -> Vec<f64> {
-    let joints = m.weights.len();
-    let linear: Vec<usize> = (0..candidates.len())
-        .filter(|&c| candidates[c].shape.is_linear())
-        .collect();
-    let columns = crate::diagnose::candidate::columns_of(candidates, &linear);
-    let (a, b) = m.normal_equations(&columns, |_| true);
-    let theta = crate::diagnose::solve::pseudo_solve(&a, &b);
-    let sse = crate::diagnose::moments::sse_per_joint(m, &columns, &theta);
-    let rows = |j: usize| m.rows.iter().map(|g| g[j]).sum::<usize>().max(1) as f64;
-    let variance: Vec<f64> = (0..joints).map(|j| sse[j] / rows(j)).collect();
-    let floor = variance.iter().cloned().fold(0.0, f64::max) * 1e-12;
-    let inverse: Vec<f64> = variance.iter().map(|v| 1.0 / v.max(floor).max(f64::MIN_POSITIVE)).collect();
-    let mean = inverse.iter().sum::<f64>() / joints.max(1) as f64;
-    if std::env::var("DBG_W").is_ok() {
-        eprintln!("WEIGHTS variance {variance:?}");
-    }
-    inverse.iter().map(|w| w / mean).collect()
 }

@@ -242,6 +242,7 @@ pub fn diagnose(
         candidates: &candidates,
         selected: &selected,
         rows: &kept,
+        weights: &moments.weights,
     };
     let named = Named {
         data: &data,

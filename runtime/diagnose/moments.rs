@@ -4,7 +4,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::candidate::Candidate;
+use super::candidate::{Candidate, columns_of};
+use super::solve::pseudo_solve;
 use super::stacked::Stacked;
 
 /// Second moments of all candidate columns and the residual, per
@@ -96,6 +97,26 @@ impl Moments {
     /// squared residual by its weight.
     pub(super) fn weighted(self, weights: Vec<f64>) -> Moments {
         Moments::summed(self.xx, self.xr, self.rr, self.rows, self.applied, weights)
+    }
+
+    /// The same moments weighted by each joint's noise: the inverse of the
+    /// joint's residual variance once every linear candidate is fitted at
+    /// once (least squares: the first step of feasible weighted least
+    /// squares, as Gautier's IDIM-WLS weighs an arm's joints), scaled to a
+    /// mean of 1. An arm's joints differ in noise by orders of magnitude (an
+    /// independent UR10e's shoulder 0.35 N m^2, its wrist 2e-5): fitted
+    /// unweighted, an effect every joint sees (a body, a payload's own
+    /// inertia) follows the noisiest joints, and its trace on the quiet
+    /// wrist is left to the wrist's armatures.
+    pub(super) fn noise_weighted(self, candidates: &[Candidate]) -> Moments {
+        let linear: Vec<usize> = (0..candidates.len())
+            .filter(|&c| candidates[c].shape.is_linear())
+            .collect();
+        let columns = columns_of(candidates, &linear);
+        let (a, b) = self.normal_equations(&columns, |_| true);
+        let theta = pseudo_solve(&a, &b);
+        let weights = inverse_variances(&self, &sse_per_joint(&self, &columns, &theta));
+        self.weighted(weights)
     }
 
     fn summed(
@@ -216,6 +237,20 @@ impl Moments {
     }
 }
 
+/// Each joint's inverse residual variance (`sse` per joint over its rows),
+/// scaled to a mean of 1. A joint the columns fit exactly is not given all
+/// the weight: its variance is floored at 1e-12 of the largest.
+fn inverse_variances(m: &Moments, sse: &[f64]) -> Vec<f64> {
+    let rows = |j: usize| m.rows.iter().map(|g| g[j]).sum::<usize>().max(1) as f64;
+    let variance: Vec<f64> = sse.iter().enumerate().map(|(j, s)| s / rows(j)).collect();
+    let floor = variance
+        .iter()
+        .fold(f64::MIN_POSITIVE, |a, &v| a.max(v * 1e-12));
+    let inverse: Vec<f64> = variance.iter().map(|v| 1.0 / v.max(floor)).collect();
+    let mean = inverse.iter().sum::<f64>() / inverse.len().max(1) as f64;
+    inverse.iter().map(|w| w / mean).collect()
+}
+
 /// Residual SSE per joint over all samples with `columns` fitted as `coefficients`.
 pub(super) fn sse_per_joint(
     m: &Moments,
@@ -230,4 +265,43 @@ pub(super) fn sse_per_joint(
                 .sum()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::candidate::linear;
+    use crate::diagnose::fit::fit;
+    use crate::diagnose::kind::Kind;
+
+    /// Two joints see one effect (0.5 times a shared column); joint 1's
+    /// noise is 1000 times joint 2's in amplitude. Weighted by each joint's
+    /// noise, the fit follows the quiet joint. The weights come from the
+    /// unweighted fit, whose error on the shared column (set by the noisy
+    /// joint) is left in the quiet joint's residual: its weight is some
+    /// thousands of times the other's, not the million of the noises alone,
+    /// and that is enough.
+    #[test]
+    fn noise_weights_let_the_quiet_joint_determine_a_shared_effect() {
+        let samples = 4000;
+        let noise = |s: usize| ((s as f64 * 12.9898).sin() * 43758.5453).fract() - 0.5;
+        let shared = DVector::from_fn(2 * samples, |r, _| ((r / 2) as f64 * 0.01).sin());
+        let residual = DVector::from_fn(2 * samples, |r, _| {
+            let amplitude = if r % 2 == 0 { 1.0 } else { 1e-3 };
+            0.5 * shared[r] + amplitude * noise(r)
+        });
+        let data = Stacked::of_residual(residual, 2);
+        let candidates = vec![linear(Kind::TorqueScale, shared)];
+        let plain = Moments::new(&data, &candidates);
+        let unweighted = fit(&plain, &candidates, &[0], |_| true).unwrap().theta[0];
+        let weighted = plain.noise_weighted(&candidates);
+        let ratio = weighted.weights[1] / weighted.weights[0];
+        assert!(ratio > 1e3, "{ratio}");
+        let theta = fit(&weighted, &candidates, &[0], |_| true).unwrap().theta[0];
+        assert!((theta - 0.5).abs() < 1e-4, "{theta}");
+        assert!(
+            (unweighted - 0.5).abs() > 10.0 * (theta - 0.5).abs(),
+            "{unweighted}"
+        );
+    }
 }

@@ -63,6 +63,8 @@ pub(super) struct Motion<'a> {
     pub(super) selected: &'a [usize],
     /// Each recording's kept rows at the motion band (see `data::stack`).
     pub(super) rows: &'a [Rows],
+    /// Each joint's weight in the motion stage's fits (`Moments::noise_weighted`).
+    pub(super) weights: &'a [f64],
 }
 
 /// One pass of the reversal stage: the motion stage's named effects and
@@ -106,7 +108,7 @@ impl Pass {
             }
         }
         moving_rows_only(&mut data, &mut list);
-        let m = Moments::new(&data, &list);
+        let m = Moments::new(&data, &list).weighted(motion.weights.to_vec());
         let initial = cv_mse(&m, data.dof, &list, &[], Scoring::Fitted);
         Ok(Pass {
             list,

@@ -54,7 +54,7 @@ pub(super) fn drop_friction_traces(
     let mut list: Vec<Candidate> = selected.iter().map(|&c| candidates[c].clone()).collect();
     let named = list.len();
     list.extend(smooth_friction(data, candidates, selected, &joints));
-    let m = Moments::new(data, &list);
+    let m = Moments::new(data, &list).weighted(moments.weights.clone());
     let smooth: Vec<usize> = (named..list.len()).collect();
     let mut traces = Vec::new();
     for p in checked {
