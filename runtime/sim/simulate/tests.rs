@@ -181,6 +181,19 @@ fn effort_limit_saturates_torque() {
     }
 }
 
+/// Waypoints of one joint within +-1 rad, at most 1 rad/s and 1 rad/s^2.
+fn one_joint_waypoints() -> WaypointTrajectory {
+    let limits = JointLimits::uniform(1, (-1.0, 1.0), 1.0, 1.0);
+    WaypointTrajectory::new(
+        &WaypointConfig {
+            limits,
+            ..Default::default()
+        },
+        0,
+    )
+    .unwrap()
+}
+
 #[test]
 fn divergence_reports_time() {
     // A pendulum with negative damping gains energy until it trips the bound.
@@ -189,15 +202,7 @@ fn divergence_reports_time() {
         length: 0.5,
         viscous: -2.0,
     };
-    let limits = JointLimits::uniform(1, (-1.0, 1.0), 1.0, 1.0);
-    let reference = WaypointTrajectory::new(
-        &WaypointConfig {
-            limits,
-            ..Default::default()
-        },
-        0,
-    )
-    .unwrap();
+    let reference = one_joint_waypoints();
     let mut cfg = quiet();
     cfg.controller.kp = vec![0.0];
     cfg.controller.kd = vec![0.0];
@@ -229,15 +234,7 @@ fn a_stiff_plant_is_integrated_in_enough_steps() {
     };
     let q = DVector::from_element(1, 0.3);
     assert_eq!(stable_substeps(&plant, &q, 1e-3).unwrap(), 20);
-    let limits = JointLimits::uniform(1, (-1.0, 1.0), 1.0, 1.0);
-    let reference = WaypointTrajectory::new(
-        &WaypointConfig {
-            limits,
-            ..Default::default()
-        },
-        0,
-    )
-    .unwrap();
+    let reference = one_joint_waypoints();
     let rec = simulate(&plant, &plant, &reference, &quiet(), 0).unwrap();
     let error = rec.truth.q() - rec.reference.q();
     assert!(error.amax() < 0.5, "tracking error {}", error.amax());
