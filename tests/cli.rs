@@ -377,6 +377,25 @@ fn evaluate_refuses_a_recording_in_degrees() {
     assert!(String::from_utf8_lossy(&anyway.stderr).contains("evaluated anyway"));
 }
 
+/// `evaluate` warns when the recording leaves too few samples to compare
+/// (its first 40 rows of a simulated recording: fewer than 100 after the
+/// trim), and not on the whole recording.
+#[test]
+fn evaluate_warns_about_a_comparison_of_few_samples() {
+    let dir = Dir::new();
+    let recording = crate::util::simulated_recordings(&dir, 1, 6.0).remove(0);
+    let text = std::fs::read_to_string(&recording).unwrap();
+    let head: Vec<&str> = text.lines().take(41).collect();
+    let short = dir.write("short.csv", &(head.join("\n") + "\n"));
+    let stderr = |path: &std::path::Path| {
+        let out = sdnn(&["evaluate", "--data", path.to_str().unwrap()]);
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    assert!(stderr(&short).contains("samples compared"), "{}", stderr(&short));
+    assert!(!stderr(&recording).contains("samples compared"));
+}
+
 /// `evaluate --preprocessed` compares a file that already carries filtered
 /// states as it is: the model on its rows against its torque, every row.
 /// Without the flag such a file is filtered again, and a note says so.

@@ -36,6 +36,10 @@ pub struct EvaluateArgs {
     pub no_sanity_gate: bool,
 }
 
+/// Fewer compared samples than this are warned about (a tenth of a
+/// second at 1 kHz).
+const FEWEST_SAMPLES: usize = 100;
+
 pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
     let model = find_model(&args.model)?;
     check_angle_units(model, args.input.angles.into())?;
@@ -56,6 +60,13 @@ pub fn evaluate(args: &EvaluateArgs) -> Result<()> {
         study::stack(compared.iter().map(|c| f(c).clone()).collect())
     };
     let (p, m) = (stacked(|c| &c.predicted), stacked(|c| &c.measured));
+    if m.nrows() < FEWEST_SAMPLES {
+        crate::say!(
+            "warning: only {} samples compared (after the filter's trim at each end): an MSE of \
+             so few says little about the model; record longer",
+            m.nrows()
+        );
+    }
     let mse = mse_per_joint(&p, &m);
     let mse_as_logged = mse_as_logged(args, &compared, model.dof());
     let mean = mse.iter().sum::<f64>() / mse.len().max(1) as f64;
