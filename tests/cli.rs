@@ -392,7 +392,8 @@ fn evaluate_warns_about_a_comparison_of_few_samples() {
         assert!(out.status.success(), "{out:?}");
         String::from_utf8_lossy(&out.stderr).to_string()
     };
-    assert!(stderr(&short).contains("samples compared"), "{}", stderr(&short));
+    let warned = stderr(&short);
+    assert!(warned.contains("samples compared"), "{warned}");
     assert!(!stderr(&recording).contains("samples compared"));
 }
 
