@@ -100,19 +100,21 @@ impl Moments {
     }
 
     /// The same moments weighted by each joint's noise: the inverse of the
-    /// joint's residual variance once every linear candidate is fitted at
-    /// once (least squares: the first step of feasible weighted least
+    /// joint's residual variance once every candidate column is fitted at
+    /// once, linearly (least squares: the first step of feasible weighted least
     /// squares, as Gautier's IDIM-WLS weighs an arm's joints), scaled to a
     /// mean of 1. An arm's joints differ in noise by orders of magnitude (an
     /// independent UR10e's shoulder 0.35 N m^2, its wrist 2e-5): fitted
     /// unweighted, an effect every joint sees (a body, a payload's own
     /// inertia) follows the noisiest joints, and its trace on the quiet
-    /// wrist is left to the wrist's armatures.
+    /// wrist is left to the wrist's armatures. Every column, a body's and a
+    /// tilt's too: a joint whose residual still holds an effect the columns
+    /// know is not noisy (with the linear candidates alone, a 3 degree tilt
+    /// left in the gravity-loaded joints' residual made the tilt not
+    /// significant there, and a link error was named in its place).
     pub(super) fn noise_weighted(self, candidates: &[Candidate]) -> Moments {
-        let linear: Vec<usize> = (0..candidates.len())
-            .filter(|&c| candidates[c].shape.is_linear())
-            .collect();
-        let columns = columns_of(candidates, &linear);
+        let every: Vec<usize> = (0..candidates.len()).collect();
+        let columns = columns_of(candidates, &every);
         let (a, b) = self.normal_equations(&columns, |_| true);
         let theta = pseudo_solve(&a, &b);
         let weights = inverse_variances(&self, &sse_per_joint(&self, &columns, &theta));
