@@ -149,12 +149,11 @@ pub fn apply_to_text(
                 set_keeping_decor(doc.as_table_mut(), "gravity", Value::Array(array));
             }
             (kind, Some(joint)) => {
-                let name = joints.get(joint - 1).context("joint index out of range")?;
-                let mut amounts = Vec::new();
-                let mut shape = None;
                 if kind.joint_parameters().next().is_none() {
                     bail!("{} is not an effect of a joint", kind.name());
                 }
+                let name = joints.get(joint - 1).context("joint index out of range")?;
+                let (mut amounts, mut shape) = (Vec::new(), None);
                 for p in kind.joint_parameters() {
                     let Some(key) = p.key else { continue };
                     let fitted = value(p.name)
