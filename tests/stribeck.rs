@@ -33,6 +33,13 @@ fn value(d: &Diagnosis, kind: Kind, name: &str) -> f64 {
     effect.parameters[name].as_f64().unwrap()
 }
 
+/// The 95% interval of `kind`'s `name`.
+fn interval(d: &Diagnosis, kind: Kind, name: &str) -> [f64; 2] {
+    let effect = d.effects.iter().find(|e| e.kind == kind).unwrap();
+    let ci = effect.ci95[name].as_array().unwrap();
+    [ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap()]
+}
+
 /// Within `tolerance` of the truth, relative.
 #[track_caller]
 fn near(found: f64, truth: f64, tolerance: f64, what: &str) {
@@ -76,6 +83,18 @@ fn a_breakaway_excess_is_named_by_default() {
             0.05,
             "level",
         );
+        // The intervals hold what the velocity grid's resolution costs
+        // (0.08 lies between the grid's 0.075 and 0.105 rad/s).
+        for (kind, name, truth) in [
+            (Kind::StribeckFriction, "excess", 0.23),
+            (Kind::CoulombFriction, "level", 0.16),
+        ] {
+            let [low, high] = interval(&d, kind, name);
+            assert!(
+                (low..=high).contains(&truth),
+                "{count} recording(s): {name} {truth} outside [{low}, {high}]"
+            );
+        }
     }
 }
 

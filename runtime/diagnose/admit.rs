@@ -403,6 +403,7 @@ mod tests {
             shape: Shape::Linear,
             settings: Vec::new(),
             searched: 1,
+            neighbours: Vec::new(),
         }
     }
 

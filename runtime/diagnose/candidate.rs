@@ -42,6 +42,11 @@ pub(super) struct Candidate {
     /// the significance threshold grows with it, so a search over many
     /// shapes does not find structure in noise.
     pub(super) searched: usize,
+    /// The columns at the searched setting's neighbours on its grid (the
+    /// Stribeck velocities either side of the one chosen): how far the fit
+    /// moves between them bounds what the grid's resolution can cost the
+    /// reported values. Empty for fixed shapes.
+    pub(super) neighbours: Vec<DVector<f64>>,
 }
 
 /// A linear candidate on the first joint with one column (unit tests).
@@ -70,6 +75,7 @@ pub(super) fn on_joint(
         shape: Shape::Linear,
         settings: Vec::new(),
         searched: 1,
+        neighbours: Vec::new(),
     }
 }
 
@@ -263,10 +269,19 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         if let Some((k, velocity, searched)) = found {
             // Scored as fitted (see `Columns::stribeck`).
             let fitted = &stribeck[k];
+            // The searched velocities are the grid's fastest `searched`.
+            let lowest = stribeck.len() - searched;
+            let neighbours = [k.checked_sub(1).filter(|&n| n >= lowest), Some(k + 1)]
+                .into_iter()
+                .flatten()
+                .filter_map(|n| stribeck.get(n))
+                .map(|column| own(j, &|r| column[r]))
+                .collect();
             list.push(Candidate {
                 applied: Some(own(j, &|r| fitted[r])),
                 settings: vec![("velocity", velocity)],
                 searched,
+                neighbours,
                 ..one(Kind::StribeckFriction, "excess", &|r| fitted[r])
             });
         }
@@ -295,6 +310,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
         shape: Shape::Linear,
         settings: Vec::new(),
         searched: 1,
+        neighbours: Vec::new(),
     };
     if wanted((Kind::TorqueDelay, None, None)) {
         list.push(Candidate {
@@ -359,6 +375,7 @@ fn whole_candidate(k: usize, link: &Link, columns: &[DVector<f64>]) -> Option<Ca
         shape: Shape::Whole { basis, gram },
         settings: Vec::new(),
         searched: 1,
+        neighbours: Vec::new(),
     })
 }
 
@@ -408,5 +425,6 @@ fn link_candidate(k: usize, link: &Link, columns: Vec<DVector<f64>>) -> Candidat
         },
         settings: Vec::new(),
         searched: 1,
+        neighbours: Vec::new(),
     }
 }

@@ -93,6 +93,7 @@ mod tests {
             shape,
             settings: Vec::new(),
             searched: 1,
+            neighbours: Vec::new(),
         }
     }
 

@@ -33,11 +33,12 @@ use super::rows::Rows;
 use super::settings::Settings;
 use super::significance::{searched_threshold, significant};
 use super::stacked::Stacked;
-use super::uncertainty::fit_robust;
+use super::uncertainty::{fit_robust, widened};
 use crate::dynamics::Dynamics;
 use crate::parallel::map_in_order_on;
 use crate::preprocess::Pipeline;
 use crate::trajectory::Trajectory;
+use nalgebra::DVector;
 
 /// Longest recording, in (sample, joint) rows, whose two passes run side
 /// by side: about 150 s at 1 kHz on a 7-joint arm, where one pass's
@@ -72,8 +73,13 @@ pub(super) struct Motion<'a> {
 /// joint moves.
 struct Pass {
     list: Vec<Candidate>,
+    /// How many of `list` are the motion stage's effects (its first).
+    base: usize,
     /// Per joint tried, its Stribeck candidate in `list`.
     tried: Vec<(usize, usize)>,
+    /// Per Stribeck candidate in `list`, its columns at the neighbouring
+    /// grid velocities, also in `list` (never tried or named).
+    neighbours: Vec<(usize, Vec<usize>)>,
     m: Moments,
     dof: usize,
     initial: Vec<f64>,
@@ -97,22 +103,38 @@ impl Pass {
             .iter()
             .filter_map(|&c| counterpart(&all, &motion.candidates[c]))
             .collect();
-        let mut tried = Vec::new();
-        for &j in joints {
-            let stribeck = all
-                .iter()
-                .find(|c| c.kind == Kind::StribeckFriction && c.joint == Some(j));
-            if let Some(c) = stribeck {
-                tried.push((j, list.len()));
-                list.push(c.clone());
-            }
+        let base = list.len();
+        let stribeck: Vec<(usize, &Candidate)> = joints
+            .iter()
+            .filter_map(|&j| {
+                all.iter()
+                    .find(|c| c.kind == Kind::StribeckFriction && c.joint == Some(j))
+                    .map(|c| (j, c))
+            })
+            .collect();
+        let tried: Vec<(usize, usize)> = (0..stribeck.len())
+            .map(|i| (stribeck[i].0, base + i))
+            .collect();
+        list.extend(stribeck.iter().map(|(_, c)| (*c).clone()));
+        let mut neighbours = Vec::new();
+        for (i, (_, c)) in stribeck.iter().enumerate() {
+            let at = list.len();
+            list.extend(c.neighbours.iter().map(|column| Candidate {
+                columns: vec![column.clone()],
+                applied: Some(column.clone()),
+                neighbours: Vec::new(),
+                ..(*c).clone()
+            }));
+            neighbours.push((base + i, (at..list.len()).collect()));
         }
         moving_rows_only(&mut data, &mut list);
         let m = Moments::new(&data, &list).weighted(motion.weights.to_vec());
         let initial = cv_mse(&m, data.dof, &list, &[], Scoring::Fitted);
         Ok(Pass {
             list,
+            base,
             tried,
+            neighbours,
             m,
             dof: data.dof,
             initial,
@@ -121,7 +143,7 @@ impl Pass {
 
     /// The motion stage's effects.
     fn base(&self) -> Vec<usize> {
-        (0..self.list.len() - self.tried.len()).collect()
+        (0..self.base).collect()
     }
 
     /// Joint `j`'s Stribeck candidate in `list`.
@@ -244,7 +266,8 @@ pub(super) fn stribeck(
         (current, band_current) = (mse, band_mse);
     }
     if !removed.is_empty() {
-        report(&band.m, &band.list, &named, &removed, &mut found);
+        let bias = grid_shift(&band, &named);
+        report((&band.m, &band.list), &named, &removed, &bias, &mut found);
     }
     Ok(found)
 }
@@ -328,22 +351,23 @@ fn moving_rows_only(data: &mut Stacked, list: &mut [Candidate]) {
 /// and its share of what that joint had before any effect), and the
 /// refitted values of the dry and viscous friction named on those joints.
 fn report(
-    m: &Moments,
-    list: &[Candidate],
+    (m, list): (&Moments, &[Candidate]),
     named: &[usize],
     removed: &[(usize, f64, f64)],
+    bias: &DVector<f64>,
     found: &mut Found,
 ) {
     let Some((fit, se)) = fit_robust(m, list, named) else {
         return;
     };
+    let half = widened(&se, bias);
     let joints: Vec<Option<usize>> = removed.iter().map(|&(c, ..)| list[c].joint).collect();
     let mut offset = 0;
     for &c in named {
         let candidate = &list[c];
         let w = width(candidate);
         let values: Vec<(f64, f64)> = (offset..offset + w)
-            .map(|k| (fit.theta[k], 1.96 * se[k]))
+            .map(|k| (fit.theta[k], half[k]))
             .collect();
         offset += w;
         let Some(j) = candidate
@@ -365,6 +389,33 @@ fn report(
             None => {}
         }
     }
+}
+
+/// Per parameter of the fit of `named`, what the Stribeck velocity grid's
+/// resolution can cost it: half the largest move when a named Stribeck
+/// candidate's column is replaced by a neighbouring grid velocity's (the
+/// search picks a grid point, the law's own velocity lies between grid
+/// points, and the excess trades with the velocity: a narrower fade needs
+/// a larger excess for the same torque). A bias for [`widened`].
+fn grid_shift(band: &Pass, named: &[usize]) -> DVector<f64> {
+    let theta = |trial: &[usize]| fit(&band.m, &band.list, trial, |_| true).map(|f| f.theta);
+    let Some(at) = theta(named) else {
+        return DVector::zeros(0);
+    };
+    let mut shift = DVector::zeros(at.len());
+    for (i, &c) in named.iter().enumerate() {
+        let Some((_, others)) = band.neighbours.iter().find(|(s, _)| *s == c) else {
+            continue;
+        };
+        for &other in others {
+            let mut trial = named.to_vec();
+            trial[i] = other;
+            if let Some(moved) = theta(&trial) {
+                shift = shift.zip_map(&(moved - &at), |s: f64, d: f64| s.max(0.5 * d.abs()));
+            }
+        }
+    }
+    shift
 }
 
 /// Kinds whose values the reversal stage refits on a joint where it names

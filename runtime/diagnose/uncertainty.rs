@@ -349,6 +349,7 @@ mod tests {
                 shape: Shape::Linear,
                 settings: Vec::new(),
                 searched: 1,
+                neighbours: Vec::new(),
             })
             .collect();
         let m = Moments::new(&data, &candidates);
