@@ -4,14 +4,16 @@
 //! rounds off, offset or direction-dependent friction at rest).
 
 use super::alternatives::Alternative;
-use super::candidate::{Candidate, Shape, label, width};
+use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::fit::fit;
 use super::kind::Kind;
 use super::moments::Moments;
 use super::select::{body_identifiable, mass_identifiable, select};
 use super::settings::Settings;
+use super::solve::pseudo_solve;
 use super::stacked::Stacked;
 use super::{com_hold, companion, dry, held, heldout, payload_body, report, smooth, supported};
+use nalgebra::DMatrix;
 
 /// What the data name, and what the report needs of how.
 pub(super) struct Chosen {
@@ -46,8 +48,8 @@ pub(super) fn choose(
     // withdrawn and the selection run again without it: dropped alone, the
     // effects it was fitted with (a link's first moment) stay as fitted
     // beside it.
-    let mut withdrawn: Vec<usize> = Vec::new();
-    let mut withdrawal = Vec::new();
+    let (mut withdrawn, friction_note) = friction_scales(&moments, candidates);
+    let mut withdrawal: Vec<String> = friction_note.into_iter().collect();
     let (alternatives, mut selected, mut notes) = loop {
         let mut selection = select(&moments, data.dof, candidates, settings, &withdrawn);
         let retry: Vec<usize> = second_moments
@@ -174,6 +176,83 @@ pub(super) fn choose(
 /// scales on the way (one that absorbs an effect not yet named and is
 /// dropped later), so the bound is on the final selection only.
 const NAMED_SCALE_ERROR: f64 = 0.25;
+
+/// Above this share of a joint's modelled torque (its energy over the
+/// recordings) in the span of its own friction columns, a torque scale on
+/// it is not tried: the scale would be a friction correction.
+const FRICTION_SHARE_OF_SCALE: f64 = 0.5;
+
+/// The torque scale candidates on joints whose modelled torque is mostly
+/// the description's own friction law, with a note naming them: there a
+/// scale's column is, to that share, the viscous and Coulomb columns, and
+/// a scale error cannot be told from a friction correction, the likelier
+/// error (a description's friction values are often placeholders; an
+/// imported xArm7's viscous 10 N m s/rad on joint 1 was 99% of that
+/// joint's torque, and a scale of 1.39 was named for its friction).
+fn friction_scales(moments: &Moments, candidates: &[Candidate]) -> (Vec<usize>, Option<String>) {
+    let mut withdrawn = Vec::new();
+    let mut shares = Vec::new();
+    for (c, candidate) in candidates.iter().enumerate() {
+        let Some(j) = candidate
+            .joint
+            .filter(|_| candidate.kind == Kind::TorqueScale)
+        else {
+            continue;
+        };
+        let friction: Vec<usize> = (0..candidates.len())
+            .filter(|&f| {
+                candidates[f].joint == Some(j)
+                    && matches!(
+                        candidates[f].kind,
+                        Kind::ViscousFriction | Kind::CoulombFriction
+                    )
+            })
+            .collect();
+        let share = explained_share(
+            moments,
+            j,
+            &columns_of(candidates, &[c]),
+            &columns_of(candidates, &friction),
+        );
+        if share > FRICTION_SHARE_OF_SCALE {
+            withdrawn.push(c);
+            shares.push(format!("{} ({:.0}%)", j + 1, 100.0 * share));
+        }
+    }
+    let note = (!shares.is_empty()).then(|| {
+        format!(
+            "torque_scale is not tried on joint(s) {}: that share of each joint's modelled torque \
+             is the description's own viscous and Coulomb friction, so a scale error there \
+             cannot be told from a correction of that friction (the likelier error)",
+            shares.join(", ")
+        )
+    });
+    (withdrawn, note)
+}
+
+/// The share of column `target`'s energy on joint `j`'s rows (summed over
+/// the recordings) that the columns `by` explain by least squares.
+fn explained_share(moments: &Moments, j: usize, target: &[usize], by: &[usize]) -> f64 {
+    let (Some(&t), false) = (target.first(), by.is_empty()) else {
+        return 0.0;
+    };
+    let xx = moments
+        .xx
+        .iter()
+        .fold(DMatrix::zeros(by.len() + 1, by.len() + 1), |sum, group| {
+            let all: Vec<usize> = by.iter().copied().chain([t]).collect();
+            sum + DMatrix::from_fn(all.len(), all.len(), |a, b| group[j][(all[a], all[b])])
+        });
+    let k = by.len();
+    let energy = xx[(k, k)];
+    if energy <= 0.0 {
+        return 0.0;
+    }
+    let inside = xx.view((0, 0), (k, k)).into_owned();
+    let cross = xx.view((0, k), (k, 1)).column(0).into_owned();
+    let coefficients = pseudo_solve(&inside, &cross);
+    (cross.dot(&coefficients) / energy).clamp(0.0, 1.0)
+}
 
 /// The torque scales of `selected` whose fitted error, beside the other
 /// named effects, is beyond [`NAMED_SCALE_ERROR`], with that error: on a
@@ -316,6 +395,32 @@ mod tests {
             assert!(all.contains(&1), "{all:?}");
             let without = select(&m, 1, &candidates, settings, &[1]).selected;
             assert!(!without.contains(&1), "{without:?}");
+        }
+    }
+
+    /// A scale whose column, the model's torque, is 10 qd + sin(q) (a
+    /// description's viscous friction beside a light link) is 99% the
+    /// viscous column and not tried, with a note naming the joint; at
+    /// 0.5 qd + sin(q) (21%) it is tried.
+    #[test]
+    fn a_scale_of_a_torque_that_is_mostly_friction_is_not_tried() {
+        for (viscous, tried) in [(10.0, false), (0.5, true)] {
+            let (data, q, qd) = sweep(|_, qd| 0.1 * qd);
+            let model = viscous * &qd + q.map(f64::sin);
+            let candidates = vec![
+                candidate(Kind::ViscousFriction, qd),
+                candidate(Kind::TorqueScale, model),
+            ];
+            let m = Moments::new(&data, &candidates);
+            let (withdrawn, note) = friction_scales(&m, &candidates);
+            match tried {
+                false => {
+                    assert_eq!(withdrawn, [1]);
+                    let note = note.unwrap();
+                    assert!(note.contains("joint(s) 1 (99%)"), "{note}");
+                }
+                true => assert!(withdrawn.is_empty() && note.is_none(), "{note:?}"),
+            }
         }
     }
 }
