@@ -48,7 +48,8 @@ pub(super) fn choose(
     // withdrawn and the selection run again without it: dropped alone, the
     // effects it was fitted with (a link's first moment) stay as fitted
     // beside it.
-    let (mut withdrawn, friction_note) = friction_scales(&moments, candidates);
+    let (untried, friction_note) = friction_scales(&moments, candidates);
+    let mut withdrawn = untried.clone();
     let mut withdrawal: Vec<String> = friction_note.into_iter().collect();
     let (alternatives, mut selected, mut notes) = loop {
         let mut selection = select(&moments, data.dof, candidates, settings, &withdrawn);
@@ -120,7 +121,7 @@ pub(super) fn choose(
         candidates,
         &mut selected,
         &mut notes,
-        settings,
+        (settings, &untried),
     );
     let judged = selected.len();
     smooth::drop_friction_traces(
@@ -142,7 +143,7 @@ pub(super) fn choose(
             candidates,
             &mut selected,
             &mut notes,
-            settings,
+            (settings, &untried),
         );
     }
     let parameters = selected.iter().map(|&c| width(&candidates[c])).sum();
@@ -158,7 +159,13 @@ pub(super) fn choose(
     );
     if !held.is_empty() {
         notes.extend(held);
-        supported = supported::supported(&moments, data.dof, candidates, &selected, settings);
+        supported = supported::supported(
+            &moments,
+            data.dof,
+            candidates,
+            &selected,
+            (settings, &untried),
+        );
     }
     notes.extend(payload_body::stand_ins(&moments, candidates, &selected));
     Chosen {
@@ -331,11 +338,11 @@ fn drop_unheld(
     candidates: &[Candidate],
     selected: &mut Vec<usize>,
     notes: &mut Vec<String>,
-    settings: Settings,
+    (settings, untried): (Settings, &[usize]),
 ) -> Vec<supported::Supported> {
     let mut supported = Vec::new();
     held::drop_unheld(m, candidates, selected, notes, |s| {
-        supported = supported::supported(m, dof, candidates, s, settings);
+        supported = supported::supported(m, dof, candidates, s, (settings, untried));
         let timing = supported::timing_shift(m, candidates, s);
         held::bias_elsewhere(candidates, s, &supported, timing)
     });
@@ -405,7 +412,7 @@ mod tests {
     #[test]
     fn a_scale_of_a_torque_that_is_mostly_friction_is_not_tried() {
         for (viscous, tried) in [(10.0, false), (0.5, true)] {
-            let (data, q, qd) = sweep(|_, qd| 0.1 * qd);
+            let (data, q, qd) = sweep(|q, qd| 0.1 * qd + 0.05 * q.sin());
             let model = viscous * &qd + q.map(f64::sin);
             let candidates = vec![
                 candidate(Kind::ViscousFriction, qd),
@@ -418,6 +425,14 @@ mod tests {
                     assert_eq!(withdrawn, [1]);
                     let note = note.unwrap();
                     assert!(note.contains("joint(s) 1 (99%)"), "{note}");
+                    // Nor is it listed as supported, which it is when tried.
+                    let listed = |untried: &[usize]| {
+                        let settings = (Settings::default(), untried);
+                        supported::supported(&m, 1, &candidates, &[0], settings)
+                            .iter()
+                            .any(|s| s.candidate == 1)
+                    };
+                    assert!(listed(&[]) && !listed(&withdrawn));
                 }
                 true => assert!(withdrawn.is_empty() && note.is_none(), "{note:?}"),
             }

@@ -45,13 +45,13 @@ pub(super) struct Supported {
 /// relative change), with parameters identifiable beside the named ones,
 /// significant at [`SUPPORT_T`] and physical: the data support it, although
 /// it was not named (below the naming |t|, below the minimum gain or the
-/// gain floor, or dropped).
+/// gain floor, or dropped). The `untried` candidates are left out.
 pub(super) fn supported(
     m: &Moments,
     dof: usize,
     candidates: &[Candidate],
     selected: &[usize],
-    settings: Settings,
+    (settings, untried): (Settings, &[usize]),
 ) -> Vec<Supported> {
     let initial = cv_mse(m, dof, candidates, &[], Scoring::Fitted);
     let current = cv_mse(m, dof, candidates, selected, Scoring::Fitted);
@@ -64,7 +64,9 @@ pub(super) fn supported(
         }
     };
     let open: Vec<usize> = (0..candidates.len())
-        .filter(|c| !selected.contains(c) && admissible(candidates, *c, selected))
+        .filter(|c| {
+            !selected.contains(c) && !untried.contains(c) && admissible(candidates, *c, selected)
+        })
         .collect();
     // Each candidate's cross-validation is independent of the others'.
     map_in_order(&open, |&c| {
