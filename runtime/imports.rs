@@ -67,7 +67,9 @@ pub fn import_urdf_command(args: &ImportUrdfArgs) -> Result<()> {
     emit(args.out.as_ref(), imported.toml.as_bytes())?;
     if let Some(out) = &args.out {
         crate::say!(
-            "wrote {}; put it in models/ and run `cargo build` to generate its dynamics",
+            "wrote {}; every command takes it as is (`--model {}`); put it in models/ and run \
+             `cargo build --release` for its generated, compiled dynamics",
+            out.display(),
             out.display()
         );
     }

@@ -189,8 +189,9 @@ fn the_arm_refuses_a_flipped_sign_degrees_and_exchanged_joints() {
     }
 }
 
-/// A time column in milliseconds, and velocities in deg/s beside angles in
-/// rad: the logged velocities are 1000 and 57 times the positions' rate.
+/// A time column in milliseconds, velocities in deg/s beside angles in
+/// rad, and velocities a 57th of the truth (rad/s read as deg/s): the
+/// logged velocities are 1000, 57 and 1/57 times the positions' rate.
 /// Refused before anything is fitted, whatever the torques say.
 #[test]
 fn the_arm_refuses_milliseconds_and_degrees_per_second() {
@@ -211,7 +212,19 @@ fn the_arm_refuses_milliseconds_and_degrees_per_second() {
         clean.tau().clone(),
     )
     .unwrap();
-    for recording in [in_ms, deg_per_s] {
+    let read_as_deg_per_s = Trajectory::new(
+        clean.t().to_vec(),
+        clean.q().clone(),
+        clean.qd().map(f64::to_radians),
+        None,
+        clean.tau().clone(),
+    )
+    .unwrap();
+    for (recording, hint) in [
+        (in_ms, "milliseconds"),
+        (deg_per_s, "milliseconds"),
+        (read_as_deg_per_s, "unit of q per second"),
+    ] {
         let refusal = match run(ARM, &recording) {
             Ok(d) => panic!("not refused: {}", serde_json::to_string(&d.sanity).unwrap()),
             Err(e) => e.downcast::<Refusal>().expect("a refusal"),
@@ -222,7 +235,7 @@ fn the_arm_refuses_milliseconds_and_degrees_per_second() {
             .filter(|f| f.check == Check::VelocityRate)
             .collect();
         assert_eq!(rates.len(), 1, "{refusal}");
-        assert!(rates[0].message.contains("milliseconds"), "{refusal}");
+        assert!(rates[0].message.contains(hint), "{refusal}");
     }
 }
 

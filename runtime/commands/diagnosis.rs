@@ -248,8 +248,9 @@ fn apply(args: &DiagnoseArgs, model: &dyn Dynamics, report: &Diagnosis, toml: &P
         )
     };
     crate::say!(
-        "{done}:\n  sdnn evaluate --model {} --data {}{options}\n(`cargo build --release` makes \
-         it the compiled model `{}` when the file is under models/)",
+        "{done}:\n  sdnn evaluate --model {} --data {}{options}\n(on these recordings, the ones \
+         diagnosed: give recordings the diagnosis did not see for a held-out check; `cargo build \
+         --release` makes it the compiled model `{}` when the file is under models/)",
         shell_word(&toml.display().to_string()),
         data.join(" "),
         toml.file_stem()
