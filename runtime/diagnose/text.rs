@@ -248,6 +248,14 @@ impl Diagnosis {
                     Some(j) if self.sliding(j) => linear(revolute),
                     _ => revolute,
                 };
+                let name = match value.as_array() {
+                    // A body's six entries about its COM, in the JSON's order.
+                    Some(entries) if name == "inertia" && entries.len() == 6 => {
+                        "inertia about the COM (ixx, ixy, ixz, iyy, iyz, izz)"
+                    }
+                    Some(_) if name == "determined" => "determined (about the link origin)",
+                    _ => name,
+                };
                 format!("{name} {}{unit}{interval}", value_within(value, ci95))
             })
             .collect()
