@@ -55,6 +55,10 @@ pub(super) type Refit = (Kind, usize, Vec<(f64, f64)>);
 pub(super) struct Found {
     pub(super) effects: Vec<Effect>,
     pub(super) refits: Vec<Refit>,
+    /// The friction named on the joints tried, fitted at the reversal band
+    /// beside the other named effects, without Stribeck friction (half-widths
+    /// zero): how far the filter's band moves the motion stage's values.
+    pub(super) at_band: Vec<Refit>,
     pub(super) notes: Vec<String>,
 }
 
@@ -203,6 +207,7 @@ pub(super) fn stribeck(
     .try_into()
     .unwrap_or_else(|_| unreachable!("two pipelines give two passes"));
     let (gains, band) = (gains?, band?);
+    found.at_band = friction_at_band(&band);
     let (mut named_gains, mut named) = (gains.base(), band.base());
     let mut current = gains.mse(&named_gains);
     let mut band_current = band.mse(&named);
@@ -416,6 +421,27 @@ fn grid_shift(band: &Pass, named: &[usize]) -> DVector<f64> {
         }
     }
     shift
+}
+
+/// The motion stage's friction on the joints tried, fitted at the reversal
+/// band beside its other named effects (values, half-widths zero).
+fn friction_at_band(band: &Pass) -> Vec<Refit> {
+    let base = band.base();
+    let Some(fitted) = fit(&band.m, &band.list, &base, |_| true) else {
+        return Vec::new();
+    };
+    let mut at = 0;
+    let mut refits = Vec::new();
+    for &c in &base {
+        let candidate = &band.list[c];
+        let w = width(candidate);
+        if let (true, Some(j)) = (REFITTED.contains(&candidate.kind), candidate.joint) {
+            let values = (at..at + w).map(|k| (fitted.theta[k], 0.0)).collect();
+            refits.push((candidate.kind, j, values));
+        }
+        at += w;
+    }
+    refits
 }
 
 /// Kinds whose values the reversal stage refits on a joint where it names
