@@ -204,22 +204,18 @@ fn the_arm_refuses_milliseconds_and_degrees_per_second() {
         clean.tau().clone(),
     )
     .unwrap();
-    let deg_per_s = Trajectory::new(
-        clean.t().to_vec(),
-        clean.q().clone(),
-        clean.qd().map(f64::to_degrees),
-        None,
-        clean.tau().clone(),
-    )
-    .unwrap();
-    let read_as_deg_per_s = Trajectory::new(
-        clean.t().to_vec(),
-        clean.q().clone(),
-        clean.qd().map(f64::to_radians),
-        None,
-        clean.tau().clone(),
-    )
-    .unwrap();
+    let velocities = |unit: fn(f64) -> f64| {
+        let qd = clean.qd().map(unit);
+        Trajectory::new(
+            clean.t().to_vec(),
+            clean.q().clone(),
+            qd,
+            None,
+            clean.tau().clone(),
+        )
+        .unwrap()
+    };
+    let (deg_per_s, read_as_deg_per_s) = (velocities(f64::to_degrees), velocities(f64::to_radians));
     for (recording, hint) in [
         (in_ms, "milliseconds"),
         (deg_per_s, "milliseconds"),

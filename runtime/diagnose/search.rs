@@ -212,6 +212,19 @@ pub(super) fn ripple_cycles(
     Some((best.0, 2 * (MOST_CYCLES - first + 1)))
 }
 
+/// A deterministic white noise of unit RMS (uniform, a linear congruential
+/// generator from `seed`) for the diagnosis's unit tests.
+#[cfg(test)]
+pub(super) fn white_noise(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
+    }
+}
+
 /// One joint's stacked data with residual `f(q, qd)` along a sweep of
 /// 1.2 sin(0.7 t) over 20 s in four groups (the diagnosis's unit tests).
 #[cfg(test)]

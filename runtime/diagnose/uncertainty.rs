@@ -318,14 +318,7 @@ mod tests {
     #[test]
     fn standard_errors_follow_each_joints_own_noise() {
         let samples = 4000;
-        // A deterministic, white-enough noise of unit RMS.
-        let mut state = 12345u64;
-        let mut noise = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
-        };
+        let mut noise = crate::diagnose::search::white_noise(12345);
         let shape = |s: usize| (0.003 * s as f64).sin();
         let mut residual = DVector::zeros(2 * samples);
         let mut columns = [DVector::zeros(2 * samples), DVector::zeros(2 * samples)];

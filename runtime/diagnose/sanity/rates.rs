@@ -137,13 +137,7 @@ mod tests {
     #[test]
     fn noisy_positions_of_still_joints_pass() {
         let n = 4000;
-        let mut state = 7u64;
-        let mut noise = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
-        };
+        let mut noise = crate::diagnose::search::white_noise(7);
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
         let q = DMatrix::from_fn(n, 2, |_, _| 1e-4 * noise());
         let qd = DMatrix::from_fn(n, 2, |_, _| 1e-3 * noise());
