@@ -106,8 +106,9 @@ pub(super) fn describe(
 /// mass; mass and first moment for the COM): the rest are the model's,
 /// held, and an interval there would claim the model's value known. The
 /// inertia about the COM gets none: on the independent suite's 3-DOF arm
-/// such intervals held the truth in 3 of 24 runs (the last link's inertia
-/// 2 times the truth at +-1.5%; the Panda 106 of 114, the UR10e 45 of 48),
+/// such intervals held the truth in 3 of 24 (four runs of six entries; the
+/// last link's ixx twice the truth at +-1.5%; the Panda 106 of 114, the
+/// UR10e 45 of 48),
 /// so its combinations' intervals are what the report claims.
 fn body_intervals(effect: &mut Effect, se: &DVector<f64>) {
     let determined: Vec<String> = effect
