@@ -243,11 +243,11 @@ fn explained_share(moments: &Moments, j: usize, target: &[usize], by: &[usize]) 
     let (Some(&t), false) = (target.first(), by.is_empty()) else {
         return 0.0;
     };
+    let all: Vec<usize> = by.iter().copied().chain([t]).collect();
     let xx = moments
         .xx
         .iter()
-        .fold(DMatrix::zeros(by.len() + 1, by.len() + 1), |sum, group| {
-            let all: Vec<usize> = by.iter().copied().chain([t]).collect();
+        .fold(DMatrix::zeros(all.len(), all.len()), |sum, group| {
             sum + DMatrix::from_fn(all.len(), all.len(), |a, b| group[j][(all[a], all[b])])
         });
     let k = by.len();

@@ -121,14 +121,17 @@ impl Pass {
             .collect();
         list.extend(stribeck.iter().map(|(_, c)| (*c).clone()));
         let mut neighbours = Vec::new();
-        for (i, (_, c)) in stribeck.iter().enumerate() {
+        for i in 0..stribeck.len() {
+            let columns = std::mem::take(&mut list[base + i].neighbours);
             let at = list.len();
-            list.extend(c.neighbours.iter().map(|column| Candidate {
-                columns: vec![column.clone()],
-                applied: Some(column.clone()),
-                neighbours: Vec::new(),
-                ..(*c).clone()
-            }));
+            for column in columns {
+                let neighbour = Candidate {
+                    applied: Some(column.clone()),
+                    columns: vec![column],
+                    ..list[base + i].clone()
+                };
+                list.push(neighbour);
+            }
             neighbours.push((base + i, (at..list.len()).collect()));
         }
         moving_rows_only(&mut data, &mut list);
@@ -271,8 +274,7 @@ pub(super) fn stribeck(
         (current, band_current) = (mse, band_mse);
     }
     if !removed.is_empty() {
-        let bias = grid_shift(&band, &named);
-        report((&band.m, &band.list), &named, &removed, &bias, &mut found);
+        report(&band, &named, &removed, &mut found);
     }
     Ok(found)
 }
@@ -355,17 +357,12 @@ fn moving_rows_only(data: &mut Stacked, list: &mut [Candidate]) {
 /// joint fit at this band; held-out MSE removed on its joint's moving rows,
 /// and its share of what that joint had before any effect), and the
 /// refitted values of the dry and viscous friction named on those joints.
-fn report(
-    (m, list): (&Moments, &[Candidate]),
-    named: &[usize],
-    removed: &[(usize, f64, f64)],
-    bias: &DVector<f64>,
-    found: &mut Found,
-) {
+fn report(band: &Pass, named: &[usize], removed: &[(usize, f64, f64)], found: &mut Found) {
+    let (m, list) = (&band.m, band.list.as_slice());
     let Some((fit, se)) = fit_robust(m, list, named) else {
         return;
     };
-    let half = widened(&se, bias);
+    let half = widened(&se, &grid_shift(band, named, &fit.theta));
     let joints: Vec<Option<usize>> = removed.iter().map(|&(c, ..)| list[c].joint).collect();
     let mut offset = 0;
     for &c in named {
@@ -396,17 +393,14 @@ fn report(
     }
 }
 
-/// Per parameter of the fit of `named`, what the Stribeck velocity grid's
+/// Per parameter of the fit `at` of `named`, what the Stribeck velocity grid's
 /// resolution can cost it: half the largest move when a named Stribeck
 /// candidate's column is replaced by a neighbouring grid velocity's (the
 /// search picks a grid point, the law's own velocity lies between grid
 /// points, and the excess trades with the velocity: a narrower fade needs
 /// a larger excess for the same torque). A bias for [`widened`].
-fn grid_shift(band: &Pass, named: &[usize]) -> DVector<f64> {
+fn grid_shift(band: &Pass, named: &[usize], at: &DVector<f64>) -> DVector<f64> {
     let theta = |trial: &[usize]| fit(&band.m, &band.list, trial, |_| true).map(|f| f.theta);
-    let Some(at) = theta(named) else {
-        return DVector::zeros(0);
-    };
     let mut shift = DVector::zeros(at.len());
     for (i, &c) in named.iter().enumerate() {
         let Some((_, others)) = band.neighbours.iter().find(|(s, _)| *s == c) else {
@@ -416,7 +410,7 @@ fn grid_shift(band: &Pass, named: &[usize]) -> DVector<f64> {
             let mut trial = named.to_vec();
             trial[i] = other;
             if let Some(moved) = theta(&trial) {
-                shift = shift.zip_map(&(moved - &at), |s: f64, d: f64| s.max(0.5 * d.abs()));
+                shift = shift.zip_map(&(moved - at), |s: f64, d: f64| s.max(0.5 * d.abs()));
             }
         }
     }
