@@ -358,6 +358,20 @@ fn intervals_cover_the_truth_on_fixed_cases() {
         }
         assert!(o != &Outcome::Absent, "{t:?} not reported");
     }
+    // A supported effect's cut is also given against what the named
+    // effects leave (the share of the MSE before the diagnosis reads 0%).
+    assert!(!d.supported.is_empty());
+    for s in &d.supported {
+        let left = s
+            .heldout_left
+            .expect("a supported effect's cut against what is left");
+        assert!(left.share > s.heldout_share && left.share <= 1.0, "{s:?}");
+        assert!(
+            (s.heldout_mse_removed / left.mse - left.share).abs() < 1e-12,
+            "{s:?}"
+        );
+    }
+    assert!(d.effects.iter().all(|e| e.heldout_left.is_none()));
     for seed in [3, 4] {
         outcomes.extend(study_case(&cases(seed..seed + 1)[0]));
     }

@@ -27,6 +27,11 @@ pub struct Effect {
     /// That drop as a fraction of the joint's (a link effect: all joints')
     /// held-out MSE before the diagnosis.
     pub heldout_share: f64,
+    /// A supported (unnamed) effect's cut against what the named effects
+    /// leave: the joint it helps most, whose held-out MSE it lowers by
+    /// `heldout_mse_removed`; `None` for named effects.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heldout_left: Option<HeldoutLeft>,
     /// Other effects (as "kind on joint N" / "kind of link N (`name`)")
     /// that explain the same structure almost as well on held-out data: the
     /// data barely tell them from this one (a note says what would).
@@ -42,6 +47,19 @@ pub struct Effect {
     pub modelled: serde_json::Map<String, serde_json::Value>,
     #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
     pub total: serde_json::Map<String, serde_json::Value>,
+}
+
+/// The held-out MSE a supported effect would cut, against what is left.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct HeldoutLeft {
+    /// 1-based joint it helps most.
+    pub joint: usize,
+    /// That joint's held-out MSE after the named effects (N m^2), scored
+    /// as selection scores (Coulomb friction zero at rest), so it can
+    /// exceed the report's `mse_after`.
+    pub mse: f64,
+    /// `heldout_mse_removed` as a fraction of `mse`.
+    pub share: f64,
 }
 
 /// The diagnosis report (`sdnn diagnose --format json`).

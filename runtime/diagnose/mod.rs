@@ -136,7 +136,7 @@ use crate::trajectory::Trajectory;
 use choose::{Chosen, choose};
 pub use data::segment_counts;
 use data::{reject_duplicates, stack};
-pub use diagnosis::{Diagnosis, Effect, Regimes, ResidualSamples};
+pub use diagnosis::{Diagnosis, Effect, HeldoutLeft, Regimes, ResidualSamples};
 pub use identify::{Confounded, Identifiability};
 pub use kind::Kind;
 use named::{Described, Named};

@@ -112,6 +112,7 @@ mod tests {
             ci95: Map::new(),
             heldout_mse_removed: 0.0,
             heldout_share: 0.0,
+            heldout_left: None,
             ambiguous_with: Vec::new(),
             unconstrained: None,
             modelled: Map::new(),

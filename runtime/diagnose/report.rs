@@ -374,6 +374,7 @@ pub(super) fn effect(
         ci95,
         heldout_mse_removed: 0.0,
         heldout_share: 0.0,
+        heldout_left: None,
         ambiguous_with: Vec::new(),
         unconstrained: None,
         modelled: Map::new(),

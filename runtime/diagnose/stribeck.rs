@@ -147,6 +147,7 @@ mod tests {
             ci95,
             heldout_mse_removed: 0.0,
             heldout_share: 0.0,
+            heldout_left: None,
             ambiguous_with: Vec::new(),
             unconstrained: None,
             modelled: serde_json::Map::new(),

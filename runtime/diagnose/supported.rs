@@ -8,7 +8,7 @@ use nalgebra::DVector;
 
 use super::admit::{levels_hold, physical};
 use super::candidate::{Candidate, width};
-use super::diagnosis::Effect;
+use super::diagnosis::{Effect, HeldoutLeft};
 use super::fit::{fit, identifiability};
 use super::gain::Gain;
 use super::heldout::{Scoring, cv_mse};
@@ -34,10 +34,13 @@ pub(super) struct Supported {
     /// The change of the named effects' parameters (concatenated in
     /// selection order) when it is fitted with them.
     pub(super) shift: DVector<f64>,
-    /// The held-out MSE it removes from the joint it helps most, and that
-    /// joint's held-out MSE before the diagnosis.
+    /// The held-out MSE it removes from the joint it helps most, that
+    /// joint's held-out MSE before the diagnosis and after the named
+    /// effects, and the joint (0-based).
     pub(super) removed: f64,
     pub(super) of: f64,
+    pub(super) left: f64,
+    pub(super) joint: usize,
 }
 
 /// Every candidate not in `selected` that, added to it, lowers the
@@ -93,6 +96,8 @@ pub(super) fn supported(
             shift: full.theta.rows(0, at) - &named,
             removed: current[gain.joint] - mse[gain.joint],
             of: initial[gain.joint],
+            left: current[gain.joint],
+            joint: gain.joint,
         })
     })
     .into_iter()
@@ -199,6 +204,11 @@ pub(super) fn listed(
             effect.parameters.remove("correction");
             effect.heldout_mse_removed = s.removed;
             effect.heldout_share = (s.removed / s.of.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            effect.heldout_left = Some(HeldoutLeft {
+                joint: s.joint + 1,
+                mse: s.left,
+                share: (s.removed / s.left.max(f64::MIN_POSITIVE)).clamp(0.0, 1.0),
+            });
             effect
         })
         .collect()

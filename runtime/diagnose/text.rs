@@ -274,13 +274,27 @@ impl Diagnosis {
         };
         let correction = self.correction_text(e);
         let ambiguous = ambiguous_text(e);
+        let removes = match e.heldout_left {
+            // Against what the named effects leave: a share of the MSE
+            // before the diagnosis reads 0% for any effect below the named.
+            Some(left) => format!(
+                "removes {}% of joint {}'s held-out MSE left by the named effects ({} {}^2)",
+                sig(100.0 * left.share),
+                left.joint,
+                sig(e.heldout_mse_removed),
+                self.torque_unit(left.joint)
+            ),
+            None => format!(
+                "removes {:.0}% of {whose} held-out MSE ({} {}^2)",
+                100.0 * e.heldout_share,
+                sig(e.heldout_mse_removed),
+                e.joint.map_or("N m", |j| self.torque_unit(j))
+            ),
+        };
         format!(
-            "{} on {place}: {}{correction}; removes {:.0}% of {whose} held-out MSE ({} {}^2){ambiguous}",
+            "{} on {place}: {}{correction}; {removes}{ambiguous}",
             e.kind.name(),
             values.join(", "),
-            100.0 * e.heldout_share,
-            sig(e.heldout_mse_removed),
-            e.joint.map_or("N m", |j| self.torque_unit(j))
         )
     }
 }

@@ -40,6 +40,7 @@ fn effect(kind: Kind, joint: Option<usize>, params: serde_json::Value) -> Effect
         ci95: Default::default(),
         heldout_mse_removed: 0.1,
         heldout_share: 0.5,
+        heldout_left: None,
         ambiguous_with: Vec::new(),
         unconstrained: None,
         modelled: Default::default(),
