@@ -212,6 +212,11 @@ pub(super) fn stack(
         dof: n,
         levers,
         rest: at_rest.clone(),
+        friction: effect_levels(model, 1)
+            .into_iter()
+            .zip(effect_levels(model, 2))
+            .map(|(viscous, coulomb)| [viscous, coulomb])
+            .collect(),
     };
     let columns = Columns {
         own: all.own.map(DVector::from_vec),
@@ -219,7 +224,7 @@ pub(super) fn stack(
         inertial: all.inertial.into_iter().map(DVector::from_vec).collect(),
         tilt: tilted.map(|(shape, _)| (shape, all.tilt.map(DVector::from_vec))),
         measured_rate: DVector::from_vec(all.measured_rate),
-        coulomb_levels: coulomb_levels(model),
+        coulomb_levels: effect_levels(model, 2),
         sample_period: recordings.iter().map(step).fold(0.0, f64::max),
         stribeck: all.stribeck.into_iter().map(DVector::from_vec).collect(),
         rest: at_rest,
@@ -383,14 +388,14 @@ pub fn segment_counts(durations: &[f64]) -> Vec<usize> {
         .collect()
 }
 
-/// The model's Coulomb friction level of each joint (its regressor
-/// parameter `coulomb{j}`).
-fn coulomb_levels(model: &dyn Dynamics) -> Vec<f64> {
+/// The model's value of joint effect `effect` (the index in
+/// `codegen::EFFECT_NAMES`: 1 viscous, 2 Coulomb) of each joint.
+fn effect_levels(model: &dyn Dynamics, effect: usize) -> Vec<f64> {
     let n = model.dof();
     let parameters = model.parameters();
     (0..n)
         .map(|j| {
-            let at = 10 * n + codegen::EFFECTS_PER_JOINT * j + 2;
+            let at = 10 * n + codegen::EFFECTS_PER_JOINT * j + effect;
             parameters.get(at).copied().unwrap_or(0.0)
         })
         .collect()

@@ -7,7 +7,7 @@ use super::alternatives::{Alternative, NEAR, broadest, payload_over_link_error, 
 use super::candidate::{Candidate, Shape, columns_of, label, width};
 use super::companion::complete_friction;
 use super::fit::{fit, identifiability};
-use super::gain::{Gain, relative_gain, worse_than_before};
+use super::gain::{Gain, clearly_worse, relative_gain, worse_than_before};
 use super::heldout::{Scoring, cv_mse};
 use super::kind::Kind;
 use super::moments::Moments;
@@ -132,17 +132,9 @@ pub(super) fn select(
         }
         steps.refused = [withdrawn, &dropped[..1]].concat();
     }
-    let mut seen = std::collections::HashSet::new();
-    steps.notes.retain(|n| seen.insert(n.clone()));
-    let Steps {
-        mut selected,
-        mut refused,
-        mut notes,
-        mut alternatives,
-    } = steps;
-    let current = cv_mse(m, dof, candidates, &selected, Scoring::Fitted);
+    let current = cv_mse(m, dof, candidates, &steps.selected, Scoring::Fitted);
     for &c in &unidentifiable {
-        let mut trial = selected.clone();
+        let mut trial = steps.selected.clone();
         trial.push(c);
         let gain = relative_gain(
             &current,
@@ -150,7 +142,7 @@ pub(super) fn select(
             &current,
         );
         if gain.share >= settings.min_gain {
-            notes.push(format!(
+            steps.notes.push(format!(
                 "{}: {}, but these data cannot identify \
                  its parameters (they act only through a combination of them, e.g. a base \
                  parameter: only the inertia about the first joint's axis matters for the first \
@@ -165,12 +157,56 @@ pub(super) fn select(
     swap_bodies(
         m,
         candidates,
-        &mut selected,
+        &mut steps.selected,
         (&unidentifiable, &initial),
         settings,
     );
-    one_body(m, candidates, &mut selected, &unidentifiable, settings);
-    refused.extend(prune(m, candidates, &mut selected, &mut notes, settings));
+    one_body(
+        m,
+        candidates,
+        &mut steps.selected,
+        (&unidentifiable, &initial),
+        settings,
+    );
+    let dropped = prune(
+        m,
+        candidates,
+        &mut steps.selected,
+        &mut steps.notes,
+        settings,
+    );
+    if !dropped.is_empty() {
+        // A body swapped in beside another body that made it plausible
+        // falls with it, and what the effect it replaced explained (a
+        // payload's whole torque) is left unexplained: selection goes on
+        // once more, the dropped refused.
+        steps.refused.extend(dropped);
+        forward(
+            m,
+            dof,
+            candidates,
+            settings,
+            &unidentifiable,
+            &initial,
+            &mut steps,
+        );
+        let again = prune(
+            m,
+            candidates,
+            &mut steps.selected,
+            &mut steps.notes,
+            settings,
+        );
+        steps.refused.extend(again);
+    }
+    let mut seen = std::collections::HashSet::new();
+    steps.notes.retain(|n| seen.insert(n.clone()));
+    let Steps {
+        mut selected,
+        refused,
+        notes,
+        mut alternatives,
+    } = steps;
     payload_over_link_error(m, candidates, &mut selected, &mut alternatives, settings);
     alternatives.retain(|a: &Alternative| selected.contains(&a.named));
     Selection {
@@ -470,7 +506,7 @@ fn swap_bodies(
         let (c, gain, mse) = fewer_parameters(candidates, &scored, best);
         // A replacement adds no parameters' worth of effects: half the bar,
         // and no joint clearly worse.
-        let worse = mse.iter().zip(&current).any(|(t, n)| *t > NEAR * n);
+        let worse = clearly_worse(mse, &current, initial, NEAR);
         if gain.share < 0.5 * settings.min_gain || worse {
             continue;
         }
@@ -483,8 +519,9 @@ fn swap_bodies(
     }
 }
 
-/// Several named bodies whose errors one body explains as well (every
-/// joint's held-out MSE within [`NEAR`]) are that one body: a wholly wrong
+/// Several named bodies whose errors one body explains as well (no
+/// joint's held-out MSE clearly worse: [`clearly_worse`] by [`NEAR`]) are
+/// that one body: a wholly wrong
 /// link acts partly through combinations it shares with its neighbours
 /// (the base parameters regroup them), so forward selection, which names
 /// the neighbour's mass first, ends with two bodies for one error. Among
@@ -494,7 +531,7 @@ fn one_body(
     m: &Moments,
     candidates: &[Candidate],
     selected: &mut Vec<usize>,
-    excluded: &[usize],
+    (excluded, initial): (&[usize], &[f64]),
     settings: Settings,
 ) {
     let dof = m.xx.first().map_or(0, Vec::len);
@@ -511,7 +548,7 @@ fn one_body(
         let mut trial = others.clone();
         trial.push(c);
         let mse = cv_mse(m, dof, candidates, &trial, Scoring::Fitted);
-        let near = mse.iter().zip(&current).all(|(t, n)| *t <= NEAR * n);
+        let near = !clearly_worse(&mse, &current, initial, NEAR);
         let admitted = near && admits(m, candidates, &trial, settings);
         admitted.then(|| (c, mse.iter().sum::<f64>()))
     })

@@ -27,6 +27,8 @@ pub(crate) struct Stacked {
     /// Per joint the speed below which it counts as at rest (the largest
     /// over the recordings; see `rows::MOVING`).
     pub(super) rest: Vec<f64>,
+    /// Per joint the description's viscous and Coulomb friction.
+    pub(super) friction: Vec<[f64; 2]>,
 }
 
 impl Stacked {
@@ -48,6 +50,7 @@ impl Stacked {
             dof,
             levers: vec![1.0; dof],
             rest: vec![0.02; dof],
+            friction: vec![[0.0; 2]; dof],
         }
     }
 

@@ -4,6 +4,7 @@
 
 use std::fmt::Write;
 
+use super::choose::STILL_JOINTS;
 use super::diagnosis::{Diagnosis, Effect};
 use super::digits::sig;
 use super::kind::Kind;
@@ -172,6 +173,15 @@ impl Diagnosis {
         });
         if let Some(e) = named {
             return e.heldout_mse_removed;
+        }
+        if let Some(list) = note.strip_prefix(STILL_JOINTS) {
+            // "2 (5%), 4 (3%): ...": the held-out error those joints keep.
+            let list = list.split(':').next().unwrap_or("");
+            return list
+                .split(", ")
+                .filter_map(|j| j.split(' ').next()?.parse::<usize>().ok())
+                .filter_map(|j| self.mse_after.get(j.checked_sub(1)?))
+                .sum();
         }
         would_cut(note)
             .and_then(|(joint, share)| Some(share * self.mse_before.get(joint.checked_sub(1)?)?))

@@ -33,6 +33,8 @@ const ABOVE_FLOOR: f64 = 6.0;
 pub struct Choice {
     /// Sample rate of the recordings, Hz (the lowest when they differ).
     pub sample_rate_hz: f64,
+    /// The highest sample rate of the recordings, Hz.
+    pub fastest_rate_hz: f64,
     /// 99% bandwidth of the joint velocities, Hz; `None` when no joint's
     /// motion rises above the noise.
     pub motion_bandwidth_hz: Option<f64>,
@@ -64,6 +66,7 @@ pub fn choose(recordings: &[Trajectory]) -> Choice {
         .clamp(MIN_CUTOFF_HZ.min(ceiling), ceiling);
     Choice {
         sample_rate_hz,
+        fastest_rate_hz: recordings.iter().map(sample_rate).fold(0.0, f64::max),
         motion_bandwidth_hz,
         cutoff_hz,
         decimated_rate_hz: (RATE_PER_CUTOFF * cutoff_hz).min(sample_rate_hz),

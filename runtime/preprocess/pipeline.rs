@@ -210,11 +210,18 @@ impl Pipeline {
                 let bandwidth = c
                     .motion_bandwidth_hz
                     .map_or("not above the noise".to_string(), |b| format!("{b:.2} Hz"));
+                let rates = match c.fastest_rate_hz > 1.01 * c.sample_rate_hz {
+                    true => format!(
+                        "recordings at {:.0} to {:.0} Hz (the slowest bounds the cut-off)",
+                        c.fastest_rate_hz, c.sample_rate_hz
+                    ),
+                    false => format!("{:.0} Hz recordings", c.sample_rate_hz),
+                };
                 format!(
-                    "preprocessing (auto, from the data): {:.0} Hz recordings, motion bandwidth \
+                    "preprocessing (auto, from the data): {rates}, motion bandwidth \
                      {bandwidth}; zero-phase Butterworth low-pass at {cutoff_hz:.2} Hz of q, qd and \
                      tau, qdd by central differences, decimated to {:.0} Hz ({torque})",
-                    c.sample_rate_hz, c.decimated_rate_hz
+                    c.decimated_rate_hz
                 )
             }
             (_, filter) => format!(
