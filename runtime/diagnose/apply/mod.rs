@@ -540,14 +540,41 @@ fn changed_lines(old: &str, new: &str) -> Vec<String> {
         if i < a.len() && j < b.len() && a[i] == b[j] {
             (i, j) = (i + 1, j + 1);
         } else if i < a.len() && (j == b.len() || common[i + 1][j] >= common[i][j + 1]) {
-            out.push(format!("- {}", a[i]));
+            out.push(format!("{}- {}", place(&a, i), a[i]));
             i += 1;
         } else {
-            out.push(format!("+ {}", b[j]));
+            out.push(format!("{}+ {}", place(&b, j), b[j]));
             j += 1;
         }
     }
     out
+}
+
+/// "joint `name`: " for a line inside a `[[joints]]` table (likewise a
+/// link), so that seven `effects = ...` lines say whose they are; empty
+/// outside a named table.
+fn place(lines: &[&str], at: usize) -> String {
+    let header = |l: &str| l.trim_start().starts_with('[');
+    let Some(start) = (0..=at).rev().find(|&k| header(lines[k])) else {
+        return String::new();
+    };
+    let table = lines[start].trim().trim_matches(|c| c == '[' || c == ']');
+    let end = (start + 1..lines.len())
+        .find(|&k| header(lines[k]))
+        .unwrap_or(lines.len());
+    let name = lines[start + 1..end].iter().find_map(|l| {
+        let value = l
+            .trim()
+            .strip_prefix("name")?
+            .trim_start()
+            .strip_prefix('=')?;
+        Some(value.trim().trim_matches('"').to_string())
+    });
+    match (table, name) {
+        ("joints", Some(name)) => format!("joint `{name}`: "),
+        ("links", Some(name)) => format!("link `{name}`: "),
+        _ => String::new(),
+    }
 }
 
 mod body;

@@ -170,6 +170,32 @@ fn changed_lines_are_listed_in_file_order() {
 }
 
 #[test]
+fn changed_lines_say_whose_table_they_are_in() {
+    let old = "name = \"arm\"\n[[links]]\nname = \"l1\"\nmass = 1.0\n[[joints]]\n\
+               name = \"j1\"\ntype = \"revolute\"\n[[joints]]\ntype = \"fixed\"\n";
+    let new = old
+        .replace("mass = 1.0", "mass = 1.5")
+        .replace(
+            "type = \"revolute\"",
+            "type = \"revolute\"\neffects = { viscous = 0.2 }",
+        )
+        .replace("name = \"arm\"", "name = \"arm2\"")
+        .replace("type = \"fixed\"", "type = \"fixed\"\nx = 1");
+    let changes = changed_lines(old, &new);
+    assert_eq!(
+        changes,
+        [
+            "- name = \"arm\"",
+            "+ name = \"arm2\"",
+            "link `l1`: - mass = 1.0",
+            "link `l1`: + mass = 1.5",
+            "joint `j1`: + effects = { viscous = 0.2 }",
+            "+ x = 1",
+        ]
+    );
+}
+
+#[test]
 fn joint_effects_add_to_existing_values_and_keep_comments() {
     let d = diagnosis(vec![
         effect(
