@@ -109,23 +109,9 @@ pub(super) fn select(
     // from the pruned effects, the first one dropped refused (it failed
     // beside everything named; the others may have failed only once it was
     // gone) and the refusals judged beside it judged again.
+    let context = (dof, settings, &unidentifiable[..], &initial[..]);
     for round in 0..2 {
-        forward(
-            m,
-            dof,
-            candidates,
-            settings,
-            &unidentifiable,
-            &initial,
-            &mut steps,
-        );
-        let dropped = prune(
-            m,
-            candidates,
-            &mut steps.selected,
-            &mut steps.notes,
-            settings,
-        );
+        let dropped = forward_and_prune(m, candidates, context, &mut steps);
         if round == 1 || dropped.is_empty() {
             steps.refused.extend(dropped);
             break;
@@ -181,22 +167,7 @@ pub(super) fn select(
         // payload's whole torque) is left unexplained: selection goes on
         // once more, the dropped refused.
         steps.refused.extend(dropped);
-        forward(
-            m,
-            dof,
-            candidates,
-            settings,
-            &unidentifiable,
-            &initial,
-            &mut steps,
-        );
-        let again = prune(
-            m,
-            candidates,
-            &mut steps.selected,
-            &mut steps.notes,
-            settings,
-        );
+        let again = forward_and_prune(m, candidates, context, &mut steps);
         steps.refused.extend(again);
     }
     let mut seen = std::collections::HashSet::new();
@@ -215,6 +186,24 @@ pub(super) fn select(
         rejected: refused,
         alternatives,
     }
+}
+
+/// [`forward`] steps from `steps`, then the backward [`prune`]; what it
+/// dropped.
+fn forward_and_prune(
+    m: &Moments,
+    candidates: &[Candidate],
+    (dof, settings, unidentifiable, initial): (usize, Settings, &[usize], &[f64]),
+    steps: &mut Steps,
+) -> Vec<usize> {
+    forward(m, dof, candidates, settings, unidentifiable, initial, steps);
+    prune(
+        m,
+        candidates,
+        &mut steps.selected,
+        &mut steps.notes,
+        settings,
+    )
 }
 
 /// What forward selection has decided so far.
