@@ -111,6 +111,20 @@ impl std::fmt::Display for Refusal {
         for finding in &self.findings {
             write!(f, "\n  - {}", finding.message)?;
         }
+        let signs = self
+            .findings
+            .iter()
+            .filter(|x| x.check == Check::TorqueSign);
+        if signs.count() >= 2 {
+            // A sign convention is wrong one joint at a time; several at
+            // once are likelier a mix-up of columns (q and qd exchanged
+            // read as friction pushing the motion on three joints).
+            write!(
+                f,
+                "\n  several joints at once: check first that the columns are what their names \
+                 say (q, qd and tau not exchanged, joints in the model's order), then the signs"
+            )?;
+        }
         Ok(())
     }
 }
@@ -240,4 +254,37 @@ pub fn refuse(model: &dyn Dynamics, findings: &[Finding], gated: Gated) -> Resul
         findings: findings.to_vec(),
         gated,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refusal(checks: &[Check]) -> String {
+        let findings = checks
+            .iter()
+            .enumerate()
+            .map(|(j, &check)| Finding {
+                check,
+                joints: vec![j + 1],
+                value: -1.0,
+                message: format!("joint {}: a finding", j + 1),
+            })
+            .collect();
+        Refusal {
+            model: "arm".to_string(),
+            findings,
+            gated: Gated::Diagnosis,
+        }
+        .to_string()
+    }
+
+    /// Two joints' signs at once point at the columns first; one does not.
+    #[test]
+    fn several_sign_findings_point_at_the_columns_first() {
+        let hint = "check first that the columns are what their names say";
+        assert!(refusal(&[Check::TorqueSign, Check::TorqueSign]).contains(hint));
+        assert!(!refusal(&[Check::TorqueSign]).contains(hint));
+        assert!(!refusal(&[Check::TorqueSign, Check::Degrees]).contains(hint));
+    }
 }
