@@ -77,20 +77,7 @@ mod tests {
             Value::Object(m) => m,
             _ => unreachable!("an object"),
         };
-        Effect {
-            kind,
-            joint: Some(joint),
-            link: None,
-            parameters: map(parameters),
-            ci95: map(ci95),
-            heldout_mse_removed: 0.0,
-            heldout_share: 0.0,
-            heldout_left: None,
-            ambiguous_with: Vec::new(),
-            unconstrained: None,
-            modelled: Default::default(),
-            total: Default::default(),
-        }
+        Effect::new(kind, (Some(joint), None), map(parameters), map(ci95))
     }
 
     #[test]

@@ -49,6 +49,32 @@ pub struct Effect {
     pub total: serde_json::Map<String, serde_json::Value>,
 }
 
+impl Effect {
+    /// An effect with these values, nothing yet counted for it (held-out
+    /// removal, runners-up, the model's values).
+    pub(super) fn new(
+        kind: Kind,
+        (joint, link): (Option<usize>, Option<String>),
+        parameters: serde_json::Map<String, serde_json::Value>,
+        ci95: serde_json::Map<String, serde_json::Value>,
+    ) -> Effect {
+        Effect {
+            kind,
+            joint,
+            link,
+            parameters,
+            ci95,
+            heldout_mse_removed: 0.0,
+            heldout_share: 0.0,
+            heldout_left: None,
+            ambiguous_with: Vec::new(),
+            unconstrained: None,
+            modelled: serde_json::Map::new(),
+            total: serde_json::Map::new(),
+        }
+    }
+}
+
 /// The held-out MSE a supported effect would cut, against what is left.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct HeldoutLeft {

@@ -101,23 +101,11 @@ mod tests {
     use super::*;
 
     fn named(kind: Kind, parameters: &[(&str, f64)]) -> Effect {
-        Effect {
-            kind,
-            joint: Some(1),
-            link: None,
-            parameters: parameters
-                .iter()
-                .map(|&(k, v)| (k.to_string(), json!(v)))
-                .collect(),
-            ci95: Map::new(),
-            heldout_mse_removed: 0.0,
-            heldout_share: 0.0,
-            heldout_left: None,
-            ambiguous_with: Vec::new(),
-            unconstrained: None,
-            modelled: Map::new(),
-            total: Map::new(),
-        }
+        let parameters = parameters
+            .iter()
+            .map(|&(k, v)| (k.to_string(), json!(v)))
+            .collect();
+        Effect::new(kind, (Some(1), None), parameters, Map::new())
     }
 
     #[test]

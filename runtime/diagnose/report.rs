@@ -366,20 +366,9 @@ pub(super) fn effect(
     if matches!(candidate.shape, Shape::Body { .. } | Shape::Moment { .. }) {
         consistency(candidate, values, &mut parameters, notes);
     }
-    Effect {
-        kind: candidate.kind,
-        joint: candidate.joint.map(|j| j + 1),
-        link: candidate.link.as_ref().map(|(_, name)| name.clone()),
-        parameters,
-        ci95,
-        heldout_mse_removed: 0.0,
-        heldout_share: 0.0,
-        heldout_left: None,
-        ambiguous_with: Vec::new(),
-        unconstrained: None,
-        modelled: Map::new(),
-        total: Map::new(),
-    }
+    let joint = candidate.joint.map(|j| j + 1);
+    let link = candidate.link.as_ref().map(|(_, name)| name.clone());
+    Effect::new(candidate.kind, (joint, link), parameters, ci95)
 }
 
 /// Whether the corrected link (its model plus the fitted change) is a

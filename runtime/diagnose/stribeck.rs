@@ -139,20 +139,7 @@ mod tests {
         parameters.insert(name.into(), json!(value));
         let mut ci95 = serde_json::Map::new();
         ci95.insert(name.into(), json!([value - half, value + half]));
-        Effect {
-            kind,
-            joint: Some(3),
-            link: None,
-            parameters,
-            ci95,
-            heldout_mse_removed: 0.0,
-            heldout_share: 0.0,
-            heldout_left: None,
-            ambiguous_with: Vec::new(),
-            unconstrained: None,
-            modelled: serde_json::Map::new(),
-            total: serde_json::Map::new(),
-        }
+        Effect::new(kind, (Some(3), None), parameters, ci95)
     }
 
     /// The interval of a value the reversal band moves by 0.008 grows by

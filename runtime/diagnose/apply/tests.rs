@@ -32,19 +32,11 @@ fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
 }
 
 fn effect(kind: Kind, joint: Option<usize>, params: serde_json::Value) -> Effect {
+    let parameters = params.as_object().cloned().unwrap_or_default();
     Effect {
-        kind,
-        joint,
-        link: None,
-        parameters: params.as_object().cloned().unwrap_or_default(),
-        ci95: Default::default(),
         heldout_mse_removed: 0.1,
         heldout_share: 0.5,
-        heldout_left: None,
-        ambiguous_with: Vec::new(),
-        unconstrained: None,
-        modelled: Default::default(),
-        total: Default::default(),
+        ..Effect::new(kind, (joint, None), parameters, Default::default())
     }
 }
 
