@@ -1,6 +1,7 @@
 //! The `sdnn` command line: `main` only maps the outcome to an exit code.
 
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 // mimalloc keeps freed pages for the next allocation: the diagnosis builds
 // and drops full-rate columns of megabytes, and the system allocator
@@ -14,7 +15,15 @@ fn main() -> ExitCode {
     remove_temporaries_on_interrupt();
     sdnn::install_models();
     sdnn::output::protect_inputs();
-    match sdnn::cli::run(std::env::args_os()) {
+    let outcome = sdnn::cli::run(std::env::args_os());
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        // The handler is removing what this thread was writing (the cause
+        // of its error, if any): it finishes and exits 130 itself.
+        loop {
+            std::thread::park();
+        }
+    }
+    match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             if is_broken_pipe(&error) {
@@ -33,10 +42,14 @@ fn remove_temporaries_on_interrupt() {
     // Without a handler (another one already installed) the default
     // action stays; nothing else depends on it.
     let _ = ctrlc::set_handler(|| {
+        INTERRUPTED.store(true, Ordering::SeqCst);
         sdnn::output::remove_pending();
         std::process::exit(130);
     });
 }
+
+/// Set by the interrupt handler before it removes anything.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 fn is_broken_pipe(error: &anyhow::Error) -> bool {
     error
