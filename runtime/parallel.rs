@@ -7,10 +7,13 @@ pub fn workers() -> usize {
     std::thread::available_parallelism().map_or(1, |p| p.get())
 }
 
-/// `f` of every item, in order, on up to [`workers`] threads
-/// (contiguous chunks; one thread for fewer than two items).
+/// `f` of every item, in order, on the work-stealing pool (rayon): a call
+/// from inside another item's `f` shares the same threads, so nested maps
+/// (candidates, then their cross-validation folds) keep every core busy
+/// whatever their costs.
 pub fn map_in_order<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
-    map_in_order_on(items, f, workers())
+    use rayon::prelude::*;
+    items.par_iter().map(&f).collect()
 }
 
 /// [`map_in_order`] on at most `workers` threads.
@@ -66,6 +69,26 @@ mod tests {
         let squares = map_in_order(&items, |x| x * x);
         assert_eq!(squares, items.iter().map(|x| x * x).collect::<Vec<_>>());
         assert!(map_in_order(&[] as &[u64], |x| *x).is_empty());
+    }
+
+    /// Maps inside maps (candidates, then their folds) share the pool and
+    /// give what one thread gives, sums in the same order included.
+    #[test]
+    fn nested_maps_give_the_one_thread_results() {
+        let inner = |x: &f64| -> Vec<f64> {
+            let folds: Vec<f64> = (0..7).map(|k| x + f64::from(k) * 0.1).collect();
+            map_in_order(&folds, |y| (y * 1.3).sin() / (1.0 + y))
+        };
+        let items: Vec<f64> = (0..40).map(|i| f64::from(i) * 0.37).collect();
+        let nested: Vec<f64> = map_in_order(&items, |x| inner(x).iter().sum());
+        let serial: Vec<f64> = items
+            .iter()
+            .map(|x| {
+                let folds: Vec<f64> = (0..7).map(|k| x + f64::from(k) * 0.1).collect();
+                folds.iter().map(|y| (y * 1.3).sin() / (1.0 + y)).sum()
+            })
+            .collect();
+        assert_eq!(nested, serial);
     }
 
     #[test]

@@ -42,29 +42,39 @@ pub(super) fn levenberg_marquardt(
     let unexplained = problem.sse(&DVector::zeros(coef.len()));
     let mut lambda = 1e-3;
     let mut steps = 0;
+    // The quadratic model at `theta`, kept while steps are refused (only
+    // the damping changes then).
+    let mut model: Option<Model> = None;
     while steps < MAX_STEPS {
         steps += 1;
-        let excess = problem.excess(&coef);
-        let gradient = -(jacobian.transpose() * &excess);
-        let hessian = jacobian.transpose() * &problem.a * &jacobian;
-        let step = newton_step(
-            candidates, selected, &theta, &excess, &hessian, &gradient, lambda,
-        );
+        let local = model.get_or_insert_with(|| {
+            Model::at(candidates, selected, problem, (&theta, &coef, &jacobian))
+        });
+        let step = local.step(lambda);
         let mut trial = &theta + &step;
         project_masses(candidates, selected, problem, &mut trial);
         let (trial_coef, trial_jacobian) = coefficients(candidates, selected, &trial);
         let trial_value = problem.sse(&trial_coef);
+        // Converged when a step gains less than 1e-10 of what the
+        // coefficients explain: far below the noise of any torque
+        // measurement.
+        let negligible = 1e-10 * (unexplained - value).abs().max(1e-300);
         if trial_value < value {
             let decrease = value - trial_value;
             (theta, coef, jacobian, value) = (trial, trial_coef, trial_jacobian, trial_value);
+            model = None;
             lambda = (lambda / 3.0).max(1e-12);
-            // Converged when a step gains less than 1e-10 of what the
-            // coefficients explain: far below the noise of any torque
-            // measurement.
-            if decrease <= 1e-10 * (unexplained - value).abs().max(1e-300) {
+            if decrease <= negligible {
                 break;
             }
         } else {
+            // Refused, and neither this step nor the model promise a
+            // gain: the descent is at its optimum to rounding, where
+            // raising the damping would only shorten the step (MINPACK's
+            // relative-reduction test).
+            if value - trial_value >= -negligible && local.predicted(&step) <= negligible {
+                break;
+            }
             lambda *= 4.0;
             if lambda > 1e12 {
                 break;
@@ -153,30 +163,58 @@ pub(super) fn coefficients(
     (coefficients, jacobian)
 }
 
-/// A damped Newton step: the Gauss-Newton Hessian plus the coefficients'
-/// curvature weighted by the residual's excess (A c - b), with Marquardt's
-/// damping; where that is not positive definite (far from a minimum), the
-/// damped Gauss-Newton step, which always descends.
-fn newton_step(
-    candidates: &[Candidate],
-    selected: &[usize],
-    theta: &DVector<f64>,
-    excess: &DVector<f64>,
-    gauss_newton: &DMatrix<f64>,
-    gradient: &DVector<f64>,
-    lambda: f64,
-) -> DVector<f64> {
-    // A parameter nothing depends on (a held COM axis) has no gradient:
-    // a unit diagonal keeps its step zero and the Hessian invertible.
-    let damping = DMatrix::from_diagonal(&gauss_newton.diagonal().map(|d| match d {
-        0.0 => 1.0,
-        d => d * lambda,
-    }));
-    let exact = gauss_newton + curvature(candidates, selected, theta, excess) + &damping;
-    if let Some(cholesky) = exact.cholesky() {
-        return cholesky.solve(gradient);
+/// The least-squares problem's quadratic model in the parameters at one
+/// point: SSE(theta + s) ~ SSE - 2 gradient.s + s^T H s.
+struct Model {
+    /// Half the negative gradient of the sum of squares.
+    gradient: DVector<f64>,
+    /// J^T A J, the Gauss-Newton Hessian (half the sum's).
+    gauss_newton: DMatrix<f64>,
+    /// The Gauss-Newton Hessian plus the coefficients' curvature weighted
+    /// by the residual's excess (A c - b): the exact Hessian.
+    newton: DMatrix<f64>,
+}
+
+impl Model {
+    /// The model at `theta`, whose coefficients and their Jacobian are
+    /// `coef` and `jacobian`.
+    fn at(
+        candidates: &[Candidate],
+        selected: &[usize],
+        problem: &SquareRoot,
+        (theta, coef, jacobian): (&DVector<f64>, &DVector<f64>, &DMatrix<f64>),
+    ) -> Model {
+        let excess = problem.excess(coef);
+        let gauss_newton = jacobian.transpose() * &problem.a * jacobian;
+        let newton = &gauss_newton + curvature(candidates, selected, theta, &excess);
+        Model {
+            gradient: -(jacobian.transpose() * &excess),
+            gauss_newton,
+            newton,
+        }
     }
-    pseudo_solve(&(gauss_newton + damping), gradient)
+
+    /// The decrease of the sum of squares the Gauss-Newton model predicts
+    /// for `step`.
+    fn predicted(&self, step: &DVector<f64>) -> f64 {
+        2.0 * self.gradient.dot(step) - step.dot(&(&self.gauss_newton * step))
+    }
+
+    /// A damped Newton step: the exact Hessian with Marquardt's damping
+    /// `lambda`; where that is not positive definite (far from a minimum),
+    /// the damped Gauss-Newton step, which always descends.
+    fn step(&self, lambda: f64) -> DVector<f64> {
+        // A parameter nothing depends on (a held COM axis) has no gradient:
+        // a unit diagonal keeps its step zero and the Hessian invertible.
+        let damping = DMatrix::from_diagonal(&self.gauss_newton.diagonal().map(|d| match d {
+            0.0 => 1.0,
+            d => d * lambda,
+        }));
+        if let Some(cholesky) = (&self.newton + &damping).cholesky() {
+            return cholesky.solve(&self.gradient);
+        }
+        pseudo_solve(&(&self.gauss_newton + damping), &self.gradient)
+    }
 }
 
 /// Block-diagonal sum of each coefficient's Hessian in the parameters

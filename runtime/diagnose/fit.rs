@@ -11,6 +11,7 @@ use super::moments::Moments;
 use super::settings::COLLINEAR;
 use super::shape::holds;
 use super::solve::{SquareRoot, pseudo_solve, pseudo_solve_columns};
+use crate::parallel::map_in_order;
 
 /// A least-squares fit of some candidates.
 pub(super) struct Fit {
@@ -79,11 +80,12 @@ fn fit_with(
     };
     let (theta, coef, jacobian) = if nonlinear {
         let reduced = reduce(candidates, selected, (&a, &b, rr))?;
-        starts
-            .into_iter()
-            .map(|start| descend(candidates, selected, &reduced, start))
-            .min_by(|x, y| x.3.total_cmp(&y.3))
-            .map(|(t, c, j, _)| (t, c, j))?
+        map_in_order(&starts, |start| {
+            descend(candidates, selected, &reduced, start.clone())
+        })
+        .into_iter()
+        .min_by(|x, y| x.3.total_cmp(&y.3))
+        .map(|(t, c, j, _)| (t, c, j))?
     } else {
         let start = starts.into_iter().next()?;
         linear(candidates, selected, &a, &b, start)

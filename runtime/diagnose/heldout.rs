@@ -5,6 +5,7 @@ use nalgebra::DVector;
 use super::candidate::{Candidate, columns_of};
 use super::fit::{fit, fit_near, is_nonlinear};
 use super::moments::Moments;
+use crate::parallel::map_in_order;
 
 /// Leave-one-trajectory-out MSE per joint of the residual after the effects.
 pub(super) fn cv_mse_per_joint(
@@ -70,22 +71,23 @@ pub(super) fn cv_sse_by_group(
         true => Some(fit(m, candidates, selected, |_| true)?.theta),
         false => None,
     };
-    (0..m.xx.len())
-        .map(|g| {
-            let coefficients = match (selected.is_empty(), &near) {
-                (true, _) => DVector::zeros(0),
-                (false, Some(near)) => {
-                    fit_near(m, candidates, selected, |h| h != g, near)?.coefficients
-                }
-                (false, None) => fit(m, candidates, selected, |h| h != g)?.coefficients,
-            };
-            Some(
-                (0..dof)
-                    .map(|j| m.sse(g, j, &columns, &coefficients))
-                    .collect(),
-            )
-        })
-        .collect()
+    let groups: Vec<usize> = (0..m.xx.len()).collect();
+    map_in_order(&groups, |&g| {
+        let coefficients = match (selected.is_empty(), &near) {
+            (true, _) => DVector::zeros(0),
+            (false, Some(near)) => {
+                fit_near(m, candidates, selected, |h| h != g, near)?.coefficients
+            }
+            (false, None) => fit(m, candidates, selected, |h| h != g)?.coefficients,
+        };
+        Some(
+            (0..dof)
+                .map(|j| m.sse(g, j, &columns, &coefficients))
+                .collect(),
+        )
+    })
+    .into_iter()
+    .collect()
 }
 
 /// The held-out MSE (generated model's columns) of the joints of the

@@ -366,7 +366,8 @@ pub(super) fn prune(
         // The last named failing effect goes first: it removed the least
         // error when named, and dropping it may restore the others'
         // significance (an early strong effect must not go for a late one).
-        let failing = selected.iter().rposition(|&c| {
+        // Every effect is checked (in parallel): most often none fails.
+        let fails = map_in_order(selected, |&c| {
             let mut trial: Vec<usize> = selected.iter().copied().filter(|&s| s != c).collect();
             trial.push(c);
             let Some(full) = fit(m, candidates, &trial, |_| true) else {
@@ -380,7 +381,7 @@ pub(super) fn prune(
                 None => true,
             }
         });
-        let Some(position) = failing else {
+        let Some(position) = fails.iter().rposition(|&fail| fail) else {
             return dropped_all;
         };
         let dropped = selected.remove(position);
