@@ -96,6 +96,10 @@ impl Nuisance {
     }
 }
 
+/// A column's share of its norm (or of the largest column's) below which
+/// it adds no direction of its own (see [`orthonormal_basis`]).
+const DEPENDENT: f64 = 1e-9;
+
 /// Columns orthogonalized together against the basis found so far: one
 /// matrix product per pass instead of a pass over the basis per column
 /// (at the reversal band a joint's basis is tens of megabytes).
@@ -104,13 +108,18 @@ const PANEL: usize = 16;
 /// An orthonormal basis of the column space of `x`: block Gram-Schmidt
 /// twice over the columns scaled to unit norm, in panels of [`PANEL`]
 /// (each projected off the basis so far, then orthogonalized within); a
-/// column with under 1e-9 of its norm left is dependent and dropped.
+/// column with under 1e-9 of its norm left is dependent and dropped, and
+/// so is a column under 1e-9 of the largest column's norm: rounding (a
+/// link's inertial column on a joint it cannot move, 5e-16 beside 1e2),
+/// which scaled to unit norm would add a random direction, another one
+/// for each way of computing the same model.
 fn orthonormal_basis(x: DMatrix<f64>) -> DMatrix<f64> {
+    let largest = x.column_iter().map(|c| c.norm()).fold(0.0, f64::max);
     let unit: Vec<DVector<f64>> = x
         .column_iter()
         .filter_map(|column| {
             let norm = column.norm();
-            (norm > 0.0).then(|| column / norm)
+            (norm > DEPENDENT * largest && norm > 0.0).then(|| column / norm)
         })
         .collect();
     let mut basis = DMatrix::zeros(x.nrows(), unit.len());
@@ -136,7 +145,7 @@ fn orthonormal_basis(x: DMatrix<f64>) -> DMatrix<f64> {
                 }
             }
             let left = v.norm();
-            if left > 1e-9 {
+            if left > DEPENDENT {
                 basis.set_column(found, &(v / left));
                 found += 1;
             }
@@ -245,6 +254,25 @@ pub(super) fn sweep(f: impl Fn(f64, f64) -> f64) -> (Stacked, DVector<f64>, DVec
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A column at rounding level beside physical ones (a link's inertial
+    /// column on a joint it cannot move, computed two ways) adds no
+    /// direction: both versions leave the same basis.
+    #[test]
+    fn a_column_at_rounding_level_adds_no_direction() {
+        let rows = 200;
+        let wave = |k: f64| DVector::from_fn(rows, |i, _| (i as f64 * 0.05 * k).sin() * 1e2);
+        let noise = |seed: u64| {
+            let mut draw = white_noise(seed);
+            DVector::from_fn(rows, |_, _| 3e-17 * draw())
+        };
+        let basis = |seed: u64| {
+            orthonormal_basis(DMatrix::from_columns(&[wave(1.0), noise(seed), wave(2.3)]))
+        };
+        let (one, other) = (basis(1), basis(2));
+        assert_eq!(one.ncols(), 2);
+        assert_eq!(one, other);
+    }
 
     #[test]
     fn the_ripple_harmonic_is_found() {
