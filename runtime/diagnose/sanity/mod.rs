@@ -181,7 +181,7 @@ pub(super) fn torques(
     let hint = positions::beyond_a_turn(model, recordings).unwrap_or_default();
     let gains: Vec<scale::Gain> = (0..data.dof).map(|j| scale::gain(data, j)).collect();
     let (exchanges, recorded) = relabel::exchanges(data, candidates);
-    let reorders = reorder::exchanges(model, data);
+    let reorders = reorder::exchanges(model, data, min_t);
     // Joints exchanged whole make the torque exchanges, fitted on the
     // recorded positions, meaningless, and torques exchanged make the
     // model's torque of any order wrong: the kind of the exchange that

@@ -6,13 +6,17 @@
 //! a gain beside the joint's own friction and offset. A payload or a wrong
 //! mass the model lacks leaves some torque unexplained in the recorded
 //! order, but the gain, friction and offset absorb most of it; the model's
-//! torque of another joint's motion explains little. An exchange of the
-//! torque columns alone is [`super::relabel`]'s.
+//! torque of another joint's motion explains little. Where the joints'
+//! torques are mostly friction, which each joint's own velocity explains in
+//! either order, the gains of the model's torque tell instead
+//! ([`GainsTell`]). An exchange of the torque columns alone is
+//! [`super::relabel`]'s.
 
 use nalgebra::{Matrix4, Vector4};
 
 use super::super::stacked::{GENERIC_FEATURES, Stacked};
-use super::relabel::{Exchange, Exchanged};
+use super::relabel::{Exchange, Exchanged, GainsTell};
+use super::scale::{self, LEAST_GAIN, MOST_GAIN};
 use crate::dynamics::Dynamics;
 
 /// Per joint, the normal equations of its torque on the columns model
@@ -43,9 +47,10 @@ impl Sums {
 }
 
 /// The sums with the joints read in `order` (joint i's signals and torque
-/// are the recorded joint `order[i]`'s). `None` when the model cannot
-/// evaluate a sample.
-fn sums(model: &dyn Dynamics, data: &Stacked, order: &[usize]) -> Option<Sums> {
+/// are the recorded joint `order[i]`'s), and the model's torque at each
+/// row of the stacked data (joint i's at the recorded joint `order[i]`'s
+/// rows). `None` when the model cannot evaluate a sample.
+fn sums(model: &dyn Dynamics, data: &Stacked, order: &[usize]) -> Option<(Sums, Vec<f64>)> {
     let n = data.dof;
     let feature = |formula: &str| GENERIC_FEATURES.iter().position(|f| f.1 == formula);
     let sign = &data.generic[feature("sign(qd)")?];
@@ -55,6 +60,7 @@ fn sums(model: &dyn Dynamics, data: &Stacked, order: &[usize]) -> Option<Sums> {
         yy: vec![0.0; n],
     };
     let samples = data.measured.len() / n.max(1);
+    let mut torque = vec![0.0; data.measured.len()];
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     for sample in 0..samples {
         let row = |i: usize| sample * n + order[i];
@@ -69,9 +75,39 @@ fn sums(model: &dyn Dynamics, data: &Stacked, order: &[usize]) -> Option<Sums> {
             s.a[i] += x * x.transpose();
             s.b[i] += x * y;
             s.yy[i] += y * y;
+            torque[r] = tau[i];
         }
     }
-    Some(s)
+    Some((s, torque))
+}
+
+/// Per recorded joint, the gain of the model's torque `torque` (per row)
+/// in its measured torque, as the torque checks fit it.
+fn gains(data: &Stacked, torque: &[f64]) -> Vec<Option<scale::Estimate>> {
+    (0..data.dof)
+        .map(|j| scale::gain_of(data, j, |r| torque[r]).model)
+        .collect()
+}
+
+/// Whether the gains of joints `pair` (0-based, recorded) tell their
+/// exchange: see [`GainsTell`].
+fn gains_tell(
+    recorded: &[Option<scale::Estimate>],
+    exchanged: &[Option<scale::Estimate>],
+    pair: [usize; 2],
+    min_t: f64,
+) -> Option<GainsTell> {
+    let low = |g: &Option<scale::Estimate>| g.is_some_and(|g| g.clearly_below(LEAST_GAIN, min_t));
+    let follows = |g: &Option<scale::Estimate>| {
+        g.is_some_and(|g| g.clearly_above(LEAST_GAIN, min_t) && g.value < MOST_GAIN)
+    };
+    let told = pair.iter().any(|&j| low(&recorded[j]))
+        && pair.iter().any(|&j| follows(&exchanged[j]))
+        && !pair.iter().any(|&j| low(&exchanged[j]));
+    told.then(|| GainsTell {
+        recorded: pair.map(|j| recorded[j]),
+        exchanged: pair.map(|j| exchanged[j]),
+    })
 }
 
 /// What the joint exchanges say: every pair's exchange against the
@@ -86,9 +122,9 @@ pub(super) struct Reorders {
 }
 
 /// Every pair of joints' exchange of all their columns, against the
-/// recorded order (the share of the pair's torque energy unexplained), and
-/// the exchanges found.
-pub(super) fn exchanges(model: &dyn Dynamics, data: &Stacked) -> Reorders {
+/// recorded order (the share of the pair's torque energy unexplained, and
+/// the gains, `min_t` standard errors clear), and the exchanges found.
+pub(super) fn exchanges(model: &dyn Dynamics, data: &Stacked, min_t: f64) -> Reorders {
     let n = data.dof;
     let mut order: Vec<usize> = (0..n).collect();
     let mut reorders = Reorders {
@@ -96,22 +132,26 @@ pub(super) fn exchanges(model: &dyn Dynamics, data: &Stacked) -> Reorders {
         found: Vec::new(),
     };
     loop {
-        let Some(current) = sums(model, data, &order) else {
+        let Some((current, torque)) = sums(model, data, &order) else {
             return reorders;
         };
+        let current_gains = gains(data, &torque);
         let moved = |j: usize| reorders.found.iter().any(|e| e.joints.contains(&(j + 1)));
         let mut round = Vec::new();
         for j in (0..n).filter(|&j| !moved(j)) {
             for k in (j + 1..n).filter(|&k| !moved(k)) {
                 let mut swapped = order.clone();
                 swapped.swap(j, k);
-                if let Some(exchanged) = sums(model, data, &swapped) {
-                    round.push(Exchange::new(
+                if let Some((exchanged, torque)) = sums(model, data, &swapped) {
+                    let mut exchange = Exchange::new(
                         Exchanged::Joints,
                         [j + 1, k + 1],
                         exchanged.unexplained(&[j, k]),
                         current.unexplained(&[j, k]),
-                    ));
+                    );
+                    let pair = [order[j], order[k]];
+                    exchange.gains = gains_tell(&current_gains, &gains(data, &torque), pair, min_t);
+                    round.push(exchange);
                 }
             }
         }

@@ -106,8 +106,14 @@ pub struct Estimate {
 impl Estimate {
     /// Whether the estimate lies below `bound` by more than `min_t`
     /// standard errors.
-    fn clearly_below(&self, bound: f64, min_t: f64) -> bool {
+    pub(super) fn clearly_below(&self, bound: f64, min_t: f64) -> bool {
         bound - self.value > min_t * self.se
+    }
+
+    /// Whether the estimate lies above `bound` by more than `min_t`
+    /// standard errors.
+    pub(super) fn clearly_above(&self, bound: f64, min_t: f64) -> bool {
+        self.value - bound > min_t * self.se
     }
 }
 
@@ -141,7 +147,7 @@ struct Sums {
     power: [f64; 2],
 }
 
-fn sums(data: &Stacked, j: usize) -> Sums {
+fn sums(data: &Stacked, j: usize, model: impl Fn(usize) -> f64) -> Sums {
     let feature = |formula: &str| GENERIC_FEATURES.iter().position(|f| f.1 == formula);
     let (Some(qd), Some(sign)) = (feature("qd"), feature("sign(qd)")) else {
         unreachable!("GENERIC_FEATURES holds qd and sign(qd)")
@@ -157,7 +163,7 @@ fn sums(data: &Stacked, j: usize) -> Sums {
     for r in data.rows_of(j) {
         let (g, y) = (data.group[r], data.measured[r]);
         let (velocity, moving) = (data.generic[qd][r], data.generic[sign][r]);
-        let x = DVector::from_vec(vec![y - data.residual[r], velocity, moving]);
+        let x = DVector::from_vec(vec![model(r), velocity, moving]);
         s.a[g].ger(1.0, &x, &x, 1.0);
         s.b[g].axpy(y, &x, 1.0);
         s.yy[g] += y * y;
@@ -172,7 +178,13 @@ fn sums(data: &Stacked, j: usize) -> Sums {
 
 /// The gain on joint `j` and its friction's power.
 pub(super) fn gain(data: &Stacked, j: usize) -> Gain {
-    let s = sums(data, j);
+    gain_of(data, j, |r| data.measured[r] - data.residual[r])
+}
+
+/// [`gain`] of another model torque: `model(r)` at each of joint `j`'s
+/// rows (the model's torque with two joints' motions exchanged).
+pub(super) fn gain_of(data: &Stacked, j: usize, model: impl Fn(usize) -> f64) -> Gain {
+    let s = sums(data, j, model);
     let nothing = Gain {
         model: None,
         friction_power: None,
