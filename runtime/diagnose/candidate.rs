@@ -344,8 +344,13 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
     list
 }
 
-/// A link's ten columns with those at rounding level (under 1e-9 of the
-/// largest's norm) set to exact zeros: a parameter the joints cannot see
+/// Under this share of the largest related column's size, a column is
+/// rounding: the same description computed another way (compiled, or read
+/// at run time) gives other digits there, never another value.
+pub(super) const ROUNDING: f64 = 1e-9;
+
+/// A link's ten columns with those at rounding level (under [`ROUNDING`]
+/// of the largest's norm) set to exact zeros: a parameter the joints cannot see
 /// (the Panda's link 2 along its own axis), which a compiled model computes
 /// as zero and the same description read at run time as 5e-16 beside 1e2.
 /// Fits scale every column to unit size, and such a column became a random
@@ -353,7 +358,7 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
 fn without_rounding(mut columns: Vec<DVector<f64>>) -> Vec<DVector<f64>> {
     let largest = columns.iter().map(|c| c.norm()).fold(0.0, f64::max);
     for column in columns.iter_mut() {
-        if column.norm() <= 1e-9 * largest {
+        if column.norm() <= ROUNDING * largest {
             column.fill(0.0);
         }
     }

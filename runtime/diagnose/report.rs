@@ -3,7 +3,7 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::candidate::{Candidate, Shape, label, width};
+use super::candidate::{Candidate, ROUNDING, Shape, label, width};
 use super::diagnosis::{Effect, Regimes, ResidualSamples};
 use super::extent::moments_within;
 use super::fit::{Fit, fit};
@@ -486,7 +486,11 @@ pub(super) fn correlation(data: &Stacked, joint: usize, column: &DVector<f64>) -
     let cov = mean(&|r| (data.residual[r] - mr) * (column[r] - mc));
     let vr = mean(&|r| (data.residual[r] - mr).powi(2));
     let vc = mean(&|r| (column[r] - mc).powi(2));
-    if vr <= 0.0 || vc <= 0.0 {
+    // A column at rounding level on this joint (the gravity load of a
+    // vertical axis) correlates with noise, differently for each way the
+    // model is computed: no correlation.
+    let scale = column.norm_squared() / column.len().max(1) as f64;
+    if vr <= 0.0 || vc <= ROUNDING * ROUNDING * scale {
         0.0
     } else {
         cov / (vr * vc).sqrt()

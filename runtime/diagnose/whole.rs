@@ -10,6 +10,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde_json::{Map, Value, json};
 
+use super::candidate::ROUNDING;
 use super::nearest::nearest_body;
 use super::shape::physically_consistent;
 use super::stacked::EXTENT_MARGIN;
@@ -189,6 +190,21 @@ pub fn about_com(p: &[f64; 10]) -> (f64, [f64; 3], [f64; 6]) {
     (m, c, [i[4], i[5], i[7], i[6], i[8], i[9]])
 }
 
+/// An inertia's entries under [`ROUNDING`] of its largest as exact
+/// zeros: the products of inertia a symmetric body lacks, which the shift
+/// to the COM leaves as 1e-20 beside 1e-3, other digits for each way the
+/// model is computed.
+fn without_rounding(inertia: [f64; 6]) -> [f64; 6] {
+    let largest = inertia.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+    inertia.map(|x| {
+        if x.abs() <= ROUNDING * largest {
+            0.0
+        } else {
+            x
+        }
+    })
+}
+
 /// The report's parameters of a named whole-body error (`label`, the
 /// model's `modelled` link and its `extent`; `values`: each
 /// combination's value and 95% half-width): the named body's mass, COM and
@@ -206,6 +222,7 @@ pub(super) fn describe(
     let named = named_within(modelled, (basis, gram), &fitted, extent);
     let (body, lost) = (named.body, named.lost);
     let (mass, com, inertia) = about_com(&body);
+    let inertia = without_rounding(inertia);
     let (nominal_mass, nominal_com, nominal_inertia) = about_com(modelled);
     let known = determined(gram);
     parameters.insert("mass".into(), json!(mass));
