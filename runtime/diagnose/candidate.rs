@@ -8,6 +8,7 @@ use super::search;
 // A candidate carries its shape; the modules that fit candidates name it here.
 pub(super) use super::shape::Shape;
 use super::shape::point_mass;
+use super::solve::ROUNDING;
 use super::stacked::{Link, Stacked};
 use super::whole;
 use crate::parallel::map_in_order;
@@ -343,11 +344,6 @@ pub(super) fn candidates(data: &Stacked, columns: Columns, links: &[Link]) -> Ve
     }
     list
 }
-
-/// Under this share of the largest related column's size, a column is
-/// rounding: the same description computed another way (compiled, or read
-/// at run time) gives other digits there, never another value.
-pub(super) const ROUNDING: f64 = 1e-9;
 
 /// A link's ten columns with those at rounding level (under [`ROUNDING`]
 /// of the largest's norm) set to exact zeros: a parameter the joints cannot see

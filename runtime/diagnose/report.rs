@@ -3,7 +3,7 @@
 
 use nalgebra::{DVector, Vector3};
 
-use super::candidate::{Candidate, ROUNDING, Shape, label, width};
+use super::candidate::{Candidate, Shape, label, width};
 use super::diagnosis::{Effect, Regimes, ResidualSamples};
 use super::extent::moments_within;
 use super::fit::{Fit, fit};
@@ -12,6 +12,7 @@ use super::kind::Kind;
 use super::moments::Moments;
 use super::shape::physically_consistent;
 use super::shape::{holds, reported_interval};
+use super::solve::ROUNDING;
 use super::stacked::Stacked;
 use super::uncertainty::{fit_robust, rest_shift, robust_quantity, widened};
 use super::whole::about_com;

@@ -4,6 +4,11 @@
 
 use nalgebra::{DMatrix, DVector};
 
+/// Under this share of the largest related column's size, a column is
+/// rounding: the same description computed another way (compiled, or read
+/// at run time) gives other digits there, never another value.
+pub(super) const ROUNDING: f64 = 1e-9;
+
 /// Smallest squared Cholesky pivot of a unit-diagonal matrix that
 /// [`pseudo_solve`] trusts; below it the SVD decides what is singular.
 pub(super) const CHOLESKY_PIVOT: f64 = 1e-8;

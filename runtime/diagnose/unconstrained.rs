@@ -16,11 +16,8 @@ use super::heldout::cv_mse_per_joint;
 use super::moments::Moments;
 use super::settings::{COLLINEAR, Settings};
 use super::shape::{physically_consistent, pseudo_inertia_margin};
+use super::solve::ROUNDING;
 use super::whole::{combinations, combine};
-
-/// Column norm, relative to the largest of the link's, below which a column
-/// is rounding.
-const ROUNDING: f64 = 1e-9;
 
 /// The free least-squares fit of a link's ten inertial parameters.
 #[derive(Debug, Clone, Serialize)]

@@ -10,9 +10,9 @@
 use nalgebra::{DMatrix, DVector};
 use serde_json::{Map, Value, json};
 
-use super::candidate::ROUNDING;
 use super::nearest::nearest_body;
 use super::shape::physically_consistent;
+use super::solve::ROUNDING;
 use super::stacked::EXTENT_MARGIN;
 
 /// Relative eigenvalue of the link's unit-diagonal Gram matrix below which
