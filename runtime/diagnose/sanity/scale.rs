@@ -360,13 +360,21 @@ impl Gain {
                     "joint {n}: the measured torque's friction pushes the motion instead of \
                      resisting it (a mean power of {} W, {:.1}% of its torque RMS times its speed \
                      RMS), as a torque logged with the other sign \
-                     does (the model's torque is too small there to tell: {gain}): {}",
+                     does (the model's torque {}: {gain}): {}",
                     self.friction_power.map_or(String::new(), |p| format!(
                         "{} ± {}",
                         sig(p.value),
                         sig(1.96 * p.se)
                     )),
                     -100.0 * self.friction_power.map_or(0.0, |p| p.value) / self.power_scale,
+                    // Told negative, it is small beside the friction (a
+                    // vertical axis): the negated model explains too little
+                    // of the torque to call the sign from it alone.
+                    if told.is_some_and(|g| g.value < 0.0) {
+                        "agrees, though it is small beside the friction"
+                    } else {
+                        "is too small there to tell"
+                    },
                     check_sign(n)
                 ),
             ),
