@@ -81,32 +81,28 @@ fn sums(model: &dyn Dynamics, data: &Stacked, order: &[usize]) -> Option<(Sums, 
     Some((s, torque))
 }
 
-/// Per recorded joint, the gain of the model's torque `torque` (per row)
-/// in its measured torque, as the torque checks fit it.
-fn gains(data: &Stacked, torque: &[f64]) -> Vec<Option<scale::Estimate>> {
-    (0..data.dof)
-        .map(|j| scale::gain_of(data, j, |r| torque[r]).model)
-        .collect()
+/// The gain of the model's torque `torque` (per row) in recorded joint
+/// `j`'s measured torque, as the torque checks fit it.
+fn gain(data: &Stacked, torque: &[f64], j: usize) -> Option<scale::Estimate> {
+    scale::gain_of(data, j, |r| torque[r]).model
 }
 
-/// Whether the gains of joints `pair` (0-based, recorded) tell their
-/// exchange: see [`GainsTell`].
+/// Whether a pair's gains, as recorded and exchanged, tell their exchange:
+/// see [`GainsTell`].
 fn gains_tell(
-    recorded: &[Option<scale::Estimate>],
-    exchanged: &[Option<scale::Estimate>],
-    pair: [usize; 2],
+    recorded: [Option<scale::Estimate>; 2],
+    exchanged: [Option<scale::Estimate>; 2],
     min_t: f64,
 ) -> Option<GainsTell> {
     let low = |g: &Option<scale::Estimate>| g.is_some_and(|g| g.clearly_below(LEAST_GAIN, min_t));
     let follows = |g: &Option<scale::Estimate>| {
         g.is_some_and(|g| g.clearly_above(LEAST_GAIN, min_t) && g.value < MOST_GAIN)
     };
-    let told = pair.iter().any(|&j| low(&recorded[j]))
-        && pair.iter().any(|&j| follows(&exchanged[j]))
-        && !pair.iter().any(|&j| low(&exchanged[j]));
-    told.then(|| GainsTell {
-        recorded: pair.map(|j| recorded[j]),
-        exchanged: pair.map(|j| exchanged[j]),
+    let told =
+        recorded.iter().any(low) && exchanged.iter().any(follows) && !exchanged.iter().any(low);
+    told.then_some(GainsTell {
+        recorded,
+        exchanged,
     })
 }
 
@@ -135,7 +131,7 @@ pub(super) fn exchanges(model: &dyn Dynamics, data: &Stacked, min_t: f64) -> Reo
         let Some((current, torque)) = sums(model, data, &order) else {
             return reorders;
         };
-        let current_gains = gains(data, &torque);
+        let current_gains: Vec<_> = (0..n).map(|j| gain(data, &torque, j)).collect();
         let moved = |j: usize| reorders.found.iter().any(|e| e.joints.contains(&(j + 1)));
         let mut round = Vec::new();
         for j in (0..n).filter(|&j| !moved(j)) {
@@ -150,7 +146,8 @@ pub(super) fn exchanges(model: &dyn Dynamics, data: &Stacked, min_t: f64) -> Reo
                         current.unexplained(&[j, k]),
                     );
                     let pair = [order[j], order[k]];
-                    exchange.gains = gains_tell(&current_gains, &gains(data, &torque), pair, min_t);
+                    let exchanged = pair.map(|p| gain(data, &torque, p));
+                    exchange.gains = gains_tell(pair.map(|p| current_gains[p]), exchanged, min_t);
                     round.push(exchange);
                 }
             }
