@@ -7,7 +7,7 @@ use super::candidate::{Candidate, Columns, Shape, candidates};
 use super::produce::{Inputs, Keep, RAW_BUDGET_BYTES, produce};
 use super::rows::{MOVING, Rows, Tilted};
 use super::settings::Settings;
-use super::stacked::{EXTENT_MARGIN, Layout, Link, Stacked};
+use super::stacked::{EXTENT_MARGIN, Layout, Link, Span, Stacked};
 use crate::dynamics::Dynamics;
 use crate::oracle::Model;
 use crate::preprocess::{Filter, Pipeline, Preprocess, central_difference, step};
@@ -180,16 +180,23 @@ pub(super) fn stack(
         None => segment_counts(&durations),
     };
     let mut group = Vec::with_capacity(all.len());
+    let mut spans = Vec::with_capacity(counts.len());
     for ((&samples, &count), &seconds) in sample_counts.iter().zip(&counts).zip(&durations) {
         // A segment of under a second validates nothing and multiplies the
         // folds: a requested count is cut to whole seconds (the report
         // states the segments used).
         let whole_seconds = (seconds / MIN_SEGMENT_SECONDS).floor().max(1.0) as usize;
-        let count = count.clamp(1, samples.max(1).min(whole_seconds));
-        let first = group.last().map_or(0, |g| g + 1);
+        let cut = |count: usize| count.clamp(1, samples.max(1).min(whole_seconds));
+        let (count, first) = (cut(count), group.last().map_or(0, |g| g + 1));
+        let start = group.len();
         for s in 0..samples {
             group.extend(std::iter::repeat_n(first + s * count / samples, n));
         }
+        spans.push(Span {
+            rows: start..group.len(),
+            groups: first..group.last().map_or(first, |g| g + 1),
+            alone: cut(settings.segments.unwrap_or(segment_counts(&[seconds])[0])),
+        });
     }
     let groups = group.last().map_or(0, |g| g + 1);
     let total: f64 = durations.iter().sum();
@@ -209,6 +216,7 @@ pub(super) fn stack(
         measured_curvature: vector(all.measured_curvature),
         generic: all.generic.into_iter().map(DVector::from_vec).collect(),
         group,
+        recordings: spans,
         dof: n,
         levers,
         rest: at_rest.clone(),

@@ -2,6 +2,8 @@
 //! (sample, joint) pair, and the model's moving links the inertial
 //! candidates correct.
 
+use std::ops::Range;
+
 use nalgebra::DVector;
 
 /// Stacked data: rows are (sample, joint) pairs, sample-major.
@@ -20,6 +22,8 @@ pub(crate) struct Stacked {
     /// Own-joint features ([`GENERIC_FEATURES`]), filtered like the columns.
     pub(super) generic: Vec<DVector<f64>>,
     pub(super) group: Vec<usize>,
+    /// Each recording's rows and groups, in order.
+    pub(super) recordings: Vec<Span>,
     pub(super) dof: usize,
     /// Per joint the lever its speeds are scaled by (1 revolute,
     /// `dynamics::PRISMATIC_LEVER` prismatic): the Stribeck grid's.
@@ -47,6 +51,11 @@ impl Stacked {
             measured_curvature: DVector::zeros(rows),
             generic: Vec::new(),
             group: (0..rows).map(|r| r * 4 / rows).collect(),
+            recordings: vec![Span {
+                rows: 0..rows,
+                groups: 0..4,
+                alone: 4,
+            }],
             dof,
             levers: vec![1.0; dof],
             rest: vec![0.02; dof],
@@ -58,6 +67,18 @@ impl Stacked {
     pub(super) fn rows_of(&self, joint: usize) -> impl Iterator<Item = usize> + Clone + '_ {
         (joint..self.residual.len()).step_by(self.dof)
     }
+}
+
+/// One recording's place in the stacked rows.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct Span {
+    /// Its rows (contiguous: recordings are stacked one after another).
+    pub(super) rows: Range<usize>,
+    /// Its cross-validation groups (groups never span recordings).
+    pub(super) groups: Range<usize>,
+    /// The segments it would be cut into if it were diagnosed alone: a
+    /// check that judges each recording alone folds its jackknife alike.
+    pub(super) alone: usize,
 }
 
 /// Beyond the farthest of its child joints and its modelled centre of mass

@@ -188,7 +188,8 @@ pub(super) fn torques(
     // fits best decides which are reported.
     let torques = disjoint(exchanges.iter().filter(|e| e.swapped()).collect());
     let ratio = |found: &[&Exchange]| found.first().map_or(f64::INFINITY, |e| e.ratio);
-    let whole: Vec<&Exchange> = reorders.found.iter().collect();
+    let each_alone = reorders.told_by_each();
+    let whole: Vec<&Exchange> = reorders.found.iter().chain(&each_alone).collect();
     let reordered = ratio(&whole) < ratio(&torques);
     let swapped = if reordered { whole } else { torques };
     let mut findings: Vec<Finding> = swapped.iter().map(|e| e.finding()).collect();

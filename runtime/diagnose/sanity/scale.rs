@@ -15,7 +15,7 @@ use serde::Serialize;
 use super::super::digits::sig;
 use super::super::solve::pseudo_solve;
 use super::super::stacked::GENERIC_FEATURES;
-use super::super::stacked::Stacked;
+use super::super::stacked::{Span, Stacked};
 use super::super::uncertainty::student_t975;
 use super::{Check, Finding};
 
@@ -147,21 +147,53 @@ struct Sums {
     power: [f64; 2],
 }
 
-fn sums(data: &Stacked, j: usize, model: impl Fn(usize) -> f64) -> Sums {
+/// The rows a gain is fitted on, and their folds for the jackknife.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Folds<'a> {
+    /// Every row, folded by cross-validation group.
+    Groups,
+    /// One recording's rows, folded as if it were diagnosed alone.
+    Alone(&'a Span),
+}
+
+impl Folds<'_> {
+    fn count(&self, data: &Stacked) -> usize {
+        match self {
+            Folds::Groups => data.group.iter().max().map_or(0, |g| g + 1),
+            Folds::Alone(span) => span.alone,
+        }
+    }
+
+    /// Row `r`'s fold, `None` for a row not fitted.
+    fn of(&self, data: &Stacked, r: usize) -> Option<usize> {
+        match self {
+            Folds::Groups => Some(data.group[r]),
+            Folds::Alone(span) if span.rows.contains(&r) => {
+                let samples = span.rows.len() / data.dof;
+                Some((r - span.rows.start) / data.dof * span.alone / samples)
+            }
+            Folds::Alone(_) => None,
+        }
+    }
+}
+
+/// The sums over joint `j`'s rows `folds` fits, per fold.
+fn sums(data: &Stacked, j: usize, folds: Folds, model: impl Fn(usize) -> f64) -> Sums {
     let feature = |formula: &str| GENERIC_FEATURES.iter().position(|f| f.1 == formula);
     let (Some(qd), Some(sign)) = (feature("qd"), feature("sign(qd)")) else {
         unreachable!("GENERIC_FEATURES holds qd and sign(qd)")
     };
-    let groups = data.group.iter().max().map_or(0, |g| g + 1);
+    let count = folds.count(data);
     let mut s = Sums {
-        a: vec![DMatrix::zeros(3, 3); groups],
-        b: vec![DVector::zeros(3); groups],
-        yy: vec![0.0; groups],
-        rows: vec![0; groups],
+        a: vec![DMatrix::zeros(3, 3); count],
+        b: vec![DVector::zeros(3); count],
+        yy: vec![0.0; count],
+        rows: vec![0; count],
         power: [0.0; 2],
     };
-    for r in data.rows_of(j) {
-        let (g, y) = (data.group[r], data.measured[r]);
+    let rows = data.rows_of(j);
+    for (r, g) in rows.filter_map(|r| Some((r, folds.of(data, r)?))) {
+        let y = data.measured[r];
         let (velocity, moving) = (data.generic[qd][r], data.generic[sign][r]);
         let x = DVector::from_vec(vec![model(r), velocity, moving]);
         s.a[g].ger(1.0, &x, &x, 1.0);
@@ -178,13 +210,21 @@ fn sums(data: &Stacked, j: usize, model: impl Fn(usize) -> f64) -> Sums {
 
 /// The gain on joint `j` and its friction's power.
 pub(super) fn gain(data: &Stacked, j: usize) -> Gain {
-    gain_of(data, j, |r| data.measured[r] - data.residual[r])
+    gain_of(data, j, Folds::Groups, |r| {
+        data.measured[r] - data.residual[r]
+    })
 }
 
 /// [`gain`] of another model torque: `model(r)` at each of joint `j`'s
-/// rows (the model's torque with two joints' motions exchanged).
-pub(super) fn gain_of(data: &Stacked, j: usize, model: impl Fn(usize) -> f64) -> Gain {
-    let s = sums(data, j, model);
+/// rows (the model's torque with two joints' motions exchanged), fitted on
+/// the rows of `folds`.
+pub(super) fn gain_of(
+    data: &Stacked,
+    j: usize,
+    folds: Folds,
+    model: impl Fn(usize) -> f64,
+) -> Gain {
+    let s = sums(data, j, folds, model);
     let nothing = Gain {
         model: None,
         friction_power: None,
@@ -441,4 +481,46 @@ fn shares(data: &Stacked, j: usize) -> (f64, f64, f64) {
     });
     let yy = yy.max(f64::MIN_POSITIVE);
     ((rr / yy).sqrt(), (mm / yy).sqrt(), (ff / yy).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::DVector;
+
+    use super::*;
+
+    /// One recording's rows fold as if it were diagnosed alone, evenly by
+    /// sample (every joint of a sample in one fold); other rows are not
+    /// fitted.
+    #[test]
+    fn a_recording_alone_folds_its_own_samples_evenly() {
+        let (dof, samples) = (2, 30);
+        let mut data = Stacked::of_residual(DVector::zeros(dof * samples), dof);
+        let span = Span {
+            rows: 2 * dof..22 * dof,
+            groups: 0..1,
+            alone: 4,
+        };
+        data.recordings = vec![span.clone()];
+        let alone = Folds::Alone(&span);
+        assert_eq!(alone.count(&data), 4);
+        let folds: Vec<Option<usize>> = (0..data.residual.len())
+            .map(|r| alone.of(&data, r))
+            .collect();
+        assert!(
+            folds[..2 * dof]
+                .iter()
+                .chain(&folds[22 * dof..])
+                .all(Option::is_none)
+        );
+        for fold in 0..4 {
+            let rows = folds.iter().filter(|f| **f == Some(fold)).count();
+            assert_eq!(rows, 5 * dof, "fold {fold}");
+        }
+        assert_eq!(
+            folds[2 * dof],
+            folds[2 * dof + 1],
+            "a sample's joints share a fold"
+        );
+    }
 }
