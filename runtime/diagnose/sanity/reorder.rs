@@ -118,7 +118,7 @@ fn gains_tell(
 ) -> Option<GainsTell> {
     let low = |g: &Option<Estimate>| g.is_some_and(|g| g.clearly_below(LEAST_GAIN, min_t));
     let follows = |g: &Option<Estimate>| {
-        g.is_some_and(|g| g.clearly_above(LEAST_GAIN, min_t) && g.value < MOST_GAIN)
+        g.is_some_and(|g| g.clearly_above(LEAST_GAIN, min_t) && !g.clearly_above(MOST_GAIN, min_t))
     };
     let told =
         recorded.iter().any(low) && exchanged.iter().any(follows) && !exchanged.iter().any(low);
