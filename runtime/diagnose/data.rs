@@ -213,6 +213,7 @@ pub(super) fn stack(
         qd: vector(all.qd),
         qdd: vector(all.qdd),
         gravity: vector(all.gravity),
+        effects: vector(all.effects),
         measured_curvature: vector(all.measured_curvature),
         generic: all.generic.into_iter().map(DVector::from_vec).collect(),
         group,

@@ -57,6 +57,8 @@ struct Derived<'a> {
     measured_rate: DMatrix<f64>,
     /// The model's gravity torque.
     load: DMatrix<f64>,
+    /// The model's joint effects (friction, offset) in `predicted`.
+    effects: DMatrix<f64>,
     accel: &'a DMatrix<f64>,
     traj: &'a Trajectory,
 }
@@ -102,7 +104,7 @@ pub(super) fn produce(
 }
 
 fn derived<'a>(model: &dyn Dynamics, traj: &'a Trajectory) -> anyhow::Result<Derived<'a>> {
-    let (predicted, load) = torques(model, traj, crate::parallel::workers())?;
+    let [predicted, load, effects] = torques(model, traj, crate::parallel::workers())?;
     let accel = traj
         .qdd()
         .ok_or_else(|| anyhow::anyhow!("a preprocessed recording has no accelerations"))?;
@@ -111,20 +113,21 @@ fn derived<'a>(model: &dyn Dynamics, traj: &'a Trajectory) -> anyhow::Result<Der
         measured_rate: torque_rate(traj.tau(), step(traj)),
         predicted,
         load,
+        effects,
         accel,
         traj,
     })
 }
 
-/// The model's torque (`dynamics::model_torques`) and gravity torque at
-/// every sample (samples x joints), on `count` contiguous ranges of
-/// samples, one thread each: a sample's values are its own, the same
-/// numbers as on one thread.
+/// The model's torque (`dynamics::model_torques`), gravity torque and
+/// joint effects at every sample (samples x joints), on `count` contiguous
+/// ranges of samples, one thread each: a sample's values are its own, the
+/// same numbers as on one thread.
 fn torques(
     model: &dyn Dynamics,
     traj: &Trajectory,
     count: usize,
-) -> anyhow::Result<(DMatrix<f64>, DMatrix<f64>)> {
+) -> anyhow::Result<[DMatrix<f64>; 3]> {
     let qdd = traj.qdd().ok_or_else(|| {
         anyhow::anyhow!("the trajectory has no accelerations; preprocess it first")
     })?;
@@ -137,22 +140,24 @@ fn torques(
     let part = |samples: &Range<usize>| -> anyhow::Result<Vec<_>> {
         let at = |s: usize| -> anyhow::Result<_> {
             let q = row(traj.q(), s);
-            let tau = model.tau(&q, &row(traj.qd(), s), &row(qdd, s))?;
-            Ok((tau, model.gravity(&q)?))
+            let qd = row(traj.qd(), s);
+            let tau = model.tau(&q, &qd, &row(qdd, s))?;
+            Ok([tau, model.gravity(&q)?, model.effects(&qd)?])
         };
         samples.clone().map(at).collect()
     };
     let parts = crate::parallel::map_in_order_on(&ranges, part, count);
-    let (mut predicted, mut load) = (DMatrix::zeros(len, n), DMatrix::zeros(len, n));
+    let mut matrices = [(); 3].map(|_| DMatrix::zeros(len, n));
     let mut s = 0;
     for part in parts {
-        for (tau, gravity) in part? {
-            predicted.set_row(s, &tau.transpose());
-            load.set_row(s, &gravity.transpose());
+        for columns in part? {
+            for (matrix, column) in matrices.iter_mut().zip(&columns) {
+                matrix.set_row(s, &column.transpose());
+            }
             s += 1;
         }
     }
-    Ok((predicted, load))
+    Ok(matrices)
 }
 
 /// The rows of `column` at `samples` (rows are (sample, joint) pairs).
@@ -496,6 +501,7 @@ fn single(
         (Signal::Measured, Some(d)) => fill(column, at, |s, i| d.traj.tau()[(s, i)]),
         (Signal::Qdd | Signal::Own(2), Some(d)) => fill(column, at, |s, i| d.accel[(s, i)]),
         (Signal::Gravity, Some(d)) => fill(column, at, |s, i| d.load[(s, i)]),
+        (Signal::Effects, Some(d)) => fill(column, at, |s, i| d.effects[(s, i)]),
         (Signal::CoulombApplied, Some(_)) => fill(column, at, |s, i| coulomb_sign(band.qd[(s, i)])),
         (Signal::Own(0), Some(d)) => fill(column, at, |s, i| d.traj.qd()[(s, i)]),
         (Signal::Own(3), Some(_)) => fill(column, at, |_, _| 1.0),

@@ -26,6 +26,9 @@ pub(super) struct Rows {
     pub(super) qd: Vec<f64>,
     pub(super) qdd: Vec<f64>,
     pub(super) gravity: Vec<f64>,
+    /// The model's joint effects in its torque (friction, offset), filtered
+    /// like the residual: the sanity gate judges the rigid body's torque.
+    pub(super) effects: Vec<f64>,
     pub(super) coulomb_applied: Vec<f64>,
     /// Fitted own-joint columns: qd, moving sign, qdd, 1, q.
     pub(super) own: [Vec<f64>; 5],
@@ -62,6 +65,7 @@ pub(super) enum Signal {
     Qd,
     Qdd,
     Gravity,
+    Effects,
     CoulombApplied,
     Own(usize),
     Inertial(usize),
@@ -93,7 +97,15 @@ impl Rows {
     /// together.
     pub(super) fn signals(&self) -> Vec<Signal> {
         use Signal::*;
-        let fixed = [Residual, Measured, Qd, Qdd, Gravity, CoulombApplied];
+        let fixed = [
+            Residual,
+            Measured,
+            Qd,
+            Qdd,
+            Gravity,
+            Effects,
+            CoulombApplied,
+        ];
         let own = (0..self.own.len()).map(Own);
         let inertial = self
             .links
@@ -130,6 +142,7 @@ impl Rows {
             Signal::Qd => &mut self.qd,
             Signal::Qdd => &mut self.qdd,
             Signal::Gravity => &mut self.gravity,
+            Signal::Effects => &mut self.effects,
             Signal::CoulombApplied => &mut self.coulomb_applied,
             Signal::Own(k) => &mut self.own[k],
             Signal::Inertial(k) => &mut self.inertial[k],
@@ -176,6 +189,7 @@ impl Rows {
             Signal::Qd => &self.qd,
             Signal::Qdd => &self.qdd,
             Signal::Gravity => &self.gravity,
+            Signal::Effects => &self.effects,
             Signal::CoulombApplied => &self.coulomb_applied,
             Signal::Own(k) => &self.own[k],
             Signal::Inertial(k) => &self.inertial[k],
@@ -203,6 +217,7 @@ impl Rows {
             qd: column(0),
             qdd: column(0),
             gravity: column(0),
+            effects: column(0),
             coulomb_applied: column(0),
             own: std::array::from_fn(column),
             inertial: columns(if links.is_empty() { 0 } else { 10 * dof }),
@@ -231,6 +246,7 @@ impl Rows {
             qd: dry.qd,
             qdd: self.qdd.clone(),
             gravity: self.gravity.clone(),
+            effects: self.effects.clone(),
             coulomb_applied: self.coulomb_applied.clone(),
             own: std::array::from_fn(own),
             inertial: match links.is_empty() {

@@ -7,6 +7,7 @@ use std::ops::Range;
 use nalgebra::DVector;
 
 /// Stacked data: rows are (sample, joint) pairs, sample-major.
+#[derive(Clone)]
 pub(crate) struct Stacked {
     pub(super) residual: DVector<f64>,
     pub(super) measured: DVector<f64>,
@@ -16,6 +17,9 @@ pub(crate) struct Stacked {
     pub(super) qdd: DVector<f64>,
     /// The model's gravity torque.
     pub(super) gravity: DVector<f64>,
+    /// The model's joint effects (friction, offset) in its torque,
+    /// filtered like the residual.
+    pub(super) effects: DVector<f64>,
     /// d2/dt2 of the measured torque (a delay's second-order term, see
     /// `super::delay`).
     pub(super) measured_curvature: DVector<f64>,
@@ -48,6 +52,7 @@ impl Stacked {
             qd: DVector::zeros(rows),
             qdd: DVector::zeros(rows),
             gravity: DVector::zeros(rows),
+            effects: DVector::zeros(rows),
             measured_curvature: DVector::zeros(rows),
             generic: Vec::new(),
             group: (0..rows).map(|r| r * 4 / rows).collect(),

@@ -135,7 +135,7 @@ fn torques_in_parts_are_the_models_at_each_sample() {
     let traj = recording(model);
     let predicted = crate::dynamics::model_torques(model, &traj).unwrap();
     for count in [1, 2, 5] {
-        let (tau, load) = torques(model, &traj, count).unwrap();
+        let [tau, load, effects] = torques(model, &traj, count).unwrap();
         assert_eq!(
             bits(tau.as_slice()),
             bits(predicted.as_slice()),
@@ -143,10 +143,16 @@ fn torques_in_parts_are_the_models_at_each_sample() {
         );
         for s in [0, 517, SAMPLES - 1] {
             let q: Vec<f64> = traj.q().row(s).iter().copied().collect();
+            let qd: Vec<f64> = traj.qd().row(s).iter().copied().collect();
             let gravity = model.gravity(&q).unwrap();
             assert_eq!(
                 bits(load.row(s).transpose().as_slice()),
                 bits(gravity.as_slice())
+            );
+            let joint_effects = model.effects(&qd).unwrap();
+            assert_eq!(
+                bits(effects.row(s).transpose().as_slice()),
+                bits(joint_effects.as_slice())
             );
         }
     }

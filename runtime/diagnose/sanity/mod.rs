@@ -133,9 +133,10 @@ impl std::fmt::Display for Refusal {
 /// report's `sanity`).
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Sanity {
-    /// Per joint the fitted gain of the model's torque in the measured
-    /// torque (1 when the model's torque is as measured) with its standard
-    /// error, or `None` where the model predicts no torque to compare.
+    /// Per joint the fitted gain of the model's rigid-body torque (its joint
+    /// effects left out) in the measured torque (1 when the model's torque
+    /// is as measured) with its standard error, or `None` where the model
+    /// predicts no torque to compare.
     pub model_torque_gain: Vec<Option<Estimate>>,
     /// Per joint the mean power of the joint's own fitted friction, W
     /// (torque times angular velocity; force times velocity on a prismatic
@@ -179,6 +180,8 @@ pub(super) fn torques(
     min_t: f64,
 ) -> Sanity {
     let hint = positions::beyond_a_turn(model, recordings).unwrap_or_default();
+    let rigid = rigid_body(data);
+    let data = &rigid;
     let gains: Vec<scale::Gain> = (0..data.dof).map(|j| scale::gain(data, j)).collect();
     let (exchanges, recorded) = relabel::exchanges(data, candidates);
     let reorders = reorder::exchanges(model, data, min_t);
@@ -218,6 +221,21 @@ pub(super) fn torques(
         best_exchange: best(exchanges),
         best_joint_exchange: best(reorders.each),
         findings,
+    }
+}
+
+/// `data` with the model's torque cut to its rigid body (inertia,
+/// armature, gravity): the model's joint friction and offset are added back
+/// to the residual. The torque checks fit each joint's own friction freely
+/// (zero at rest), and a description's friction is what the diagnosis
+/// corrects: an imported URDF's placeholder Coulomb of 1 N m on a wrist
+/// whose torque is mostly 0.06-0.9 N m of friction made the model's torque
+/// mostly a sign that is there at rest where the measured torque's is not
+/// (an xArm6: gain 0.09), and the gate refused correct recordings.
+fn rigid_body(data: &Stacked) -> Stacked {
+    Stacked {
+        residual: &data.residual + &data.effects,
+        ..data.clone()
     }
 }
 

@@ -87,7 +87,8 @@ fn sums(model: &dyn Dynamics, data: &Stacked, order: &[usize]) -> Option<(Vec<Su
         for i in 0..n {
             (q[i], qd[i], qdd[i]) = (data.angle[row(i)], data.qd[row(i)], data.qdd[row(i)]);
         }
-        let tau = model.tau(&q, &qd, &qdd).ok()?;
+        // The rigid body's torque, as the gains are judged (`super::rigid_body`).
+        let tau = model.tau(&q, &qd, &qdd).ok()? - model.effects(&qd).ok()?;
         let s = &mut each[recording_of(sample * n)?];
         for i in 0..n {
             let r = row(i);
