@@ -194,7 +194,6 @@ pub(super) fn stack(
         }
         spans.push(Span {
             rows: start..group.len(),
-            groups: first..group.last().map_or(first, |g| g + 1),
             alone: cut(settings.segments.unwrap_or(segment_counts(&[seconds])[0])),
         });
     }

@@ -58,7 +58,6 @@ impl Stacked {
             group: (0..rows).map(|r| r * 4 / rows).collect(),
             recordings: vec![Span {
                 rows: 0..rows,
-                groups: 0..4,
                 alone: 4,
             }],
             dof,
@@ -79,8 +78,6 @@ impl Stacked {
 pub(crate) struct Span {
     /// Its rows (contiguous: recordings are stacked one after another).
     pub(super) rows: Range<usize>,
-    /// Its cross-validation groups (groups never span recordings).
-    pub(super) groups: Range<usize>,
     /// The segments it would be cut into if it were diagnosed alone: a
     /// check that judges each recording alone folds its jackknife alike.
     pub(super) alone: usize,

@@ -498,7 +498,6 @@ mod tests {
         let mut data = Stacked::of_residual(DVector::zeros(dof * samples), dof);
         let span = Span {
             rows: 2 * dof..22 * dof,
-            groups: 0..1,
             alone: 4,
         };
         data.recordings = vec![span.clone()];
